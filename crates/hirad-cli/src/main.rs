@@ -1,0 +1,113 @@
+//! `hirad`: thin command-line front end of the hirad library. Parses arguments, builds a
+//! configuration, calls the library, prints tables or JSON.
+
+mod cmd;
+mod progress;
+
+use clap::{Parser, Subcommand};
+
+/// Hierarchical radiosity with clustering.
+#[derive(Parser, Debug)]
+#[command(name = "hirad", version, about, long_about = None, after_help = EXAMPLES)]
+struct Cli {
+    #[command(flatten)]
+    global: Global,
+    #[command(subcommand)]
+    command: Command,
+}
+
+const EXAMPLES: &str = "Examples:
+  hirad info office                          counts, area, materials of a built-in scene
+  hirad info ../shared/scenes/bathroom/bathroom.obj --json
+  hirad scene cornell --out cornell.obj      write a built-in scene to a file
+  hirad clusters office --clustering all     statistics of every clustering strategy
+  hirad raybench soup --clustering all --pairs 100000 --seed 1";
+
+/// Options every subcommand takes.
+#[derive(clap::Args, Debug, Clone)]
+pub struct Global {
+    /// More log output (-v info, -vv debug, -vvv trace).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+    /// No progress bars, warnings and errors only.
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
+    /// Print machine-readable JSON instead of a table.
+    #[arg(long, global = true)]
+    pub json: bool,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Counts, area, bounding box, materials, emitters and load time of a scene.
+    Info(cmd::info::Args),
+    /// Write a built-in scene to a file (OBJ or glTF by extension).
+    Scene(cmd::scene::Args),
+    /// Build cluster hierarchies and print their statistics.
+    Clusters(cmd::clusters::Args),
+    /// The paper's ray-casting test: random segments cast through each cluster tree.
+    Raybench(cmd::raybench::Args),
+    /// Solve a scene with hierarchical radiosity and write the solution.
+    Solve(cmd::solve::Args),
+    /// Render images of a solution.
+    Render(cmd::render::Args),
+    /// CIELUV image error between an image and a reference.
+    Diff(cmd::diff::Args),
+    /// Path-traced reference image of a scene.
+    Reference(cmd::reference::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    init_logging(&cli.global);
+    if let Some(n) = cli.global.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
+            eprintln!("error: cannot set up {n} threads: {e}");
+            std::process::exit(2);
+        }
+    }
+    let r = match cli.command {
+        Command::Info(a) => cmd::info::run(a, &cli.global),
+        Command::Scene(a) => cmd::scene::run(a, &cli.global),
+        Command::Clusters(a) => cmd::clusters::run(a, &cli.global),
+        Command::Raybench(a) => cmd::raybench::run(a, &cli.global),
+        Command::Solve(a) => cmd::solve::run(a, &cli.global),
+        Command::Render(a) => cmd::render::run(a, &cli.global),
+        Command::Diff(a) => cmd::diff::run(a, &cli.global),
+        Command::Reference(a) => cmd::reference::run(a, &cli.global),
+    };
+    if let Err(e) = r {
+        eprintln!("error: {e:#}");
+        let input = e
+            .downcast_ref::<hirad::Error>()
+            .map(|e| e.is_input())
+            .unwrap_or(false);
+        std::process::exit(if input { 2 } else { 1 });
+    }
+}
+
+fn init_logging(g: &Global) {
+    let level = if g.quiet {
+        "warn"
+    } else {
+        match g.verbose {
+            0 => "warn",
+            1 => "info",
+            2 => "debug",
+            _ => "trace",
+        }
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_env("HIRAD_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+}

@@ -1,0 +1,1 @@
+//! The hierarchical radiosity solver with clustering (`spec/radiosity.md`).
