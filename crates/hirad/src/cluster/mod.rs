@@ -397,3 +397,4 @@ pub mod okdt_p;
 pub mod proxi;
 pub mod sah;
 pub mod tf_oct;
+mod topdown;

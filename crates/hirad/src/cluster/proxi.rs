@@ -1,10 +1,72 @@
-//! Strategy `proxi` (see `spec/clustering.md`). Placeholder until the strategy lands: one node
-//! holding every surface, which is a valid tree for the other modules to work with.
+//! Strategy `proxi`: bottom-up proximity clustering after size filtering (Sillion & Drettakis
+//! 1995, as `spec/clustering.md` pins it).
+//!
+//! # Algorithm
+//! Let `s_ref` be the largest surface size (`size` = longest bounding-box edge). Surfaces are
+//! filtered by size into levels: level `k` holds the objects of size in
+//! `[s_ref/2^(k+1), s_ref/2^k)` (zero-size surfaces and surfaces finer than the finest level go
+//! to the finest level, which is the level of the smallest positive size, at most 64). Levels
+//! are processed finest first; level `k` has the nominal object size `c_k = s_ref/2^k`, and
+//! levels `k < 0` (`c_k > s_ref`) continue until a single object remains, the root.
+//!
+//! At level `k` the objects (surfaces of that size plus what the finer levels passed up) are
+//! hashed into a regular grid whose cells have edge `C_k`, the smallest power-of-two multiple of
+//! the global quantisation unit (scene size / 2^21) that is `≥ c_k` (so `c_k ≤ C_k < 2 c_k`
+//! while the grid is finer than the scene). Objects are visited in Morton order of their box
+//! centres; every object not yet grouped at this level seeds a group:
+//! 1. candidates: ungrouped objects in the seed's cell and its 26 neighbours (at most 32 from the
+//!    seed's cell and 8 from each neighbour, in Morton order), of which the 16 whose centres are
+//!    nearest to the seed's are kept;
+//! 2. greedy growth: repeatedly add the candidate that minimises the *volume ratio*
+//!    `ρ(G) = V(box(G)) / Σ_{o ∈ G} V(box(o))` of the grown group, among the candidates that
+//!    keep `size(box(G)) ≤ 2 c_k` (the group then fits the next coarser level), until the group
+//!    has `max_children` members or no candidate fits (ties go to the nearer candidate);
+//! 3. a group of two or more objects becomes a cluster (its surfaces attached directly, its
+//!    clusters as children, box = union of the members' boxes, i.e. tight), which is an object
+//!    of level `min(k − 1, level(size))`; a seed left alone is passed to level `k − 1` as is.
+//!
+//! `V(b)` is the *floored box volume* `Π_axis max(e_axis, φ · max(size(b), c_k/2^10))` with
+//! `e` the box's edge lengths and `φ = 1/4`: flat or point-like boxes (triangles, coincident
+//! surfaces) get a volume proportional to their size cubed instead of zero, so the ratio is
+//! always finite and positive, and grouping coplanar neighbours is not free.
+//!
+//! Every cluster has at most `max_children` members in total (child clusters plus surfaces;
+//! `max_children < 2` is treated as 2). The run is sequential over the grouping itself, which
+//! makes it deterministic; sorting and per-object setup run in parallel with keys that are
+//! unique, so the tree does not depend on the thread count.
+//!
+//! # Cost
+//! Each level sorts its objects (O(m log m)) and visits every object once, with a bounded
+//! number of candidates (hash lookups of 27 cells, at most 16 candidates, at most
+//! `max_children` greedy rounds) and a path-compressed "next ungrouped" skip list. Every group
+//! of ≥ 2 objects removes at least one object, and singletons move one level up, so the total
+//! is O(n log n) expected for scenes whose surface sizes span a bounded number of levels.
 
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use crate::geom::Aabb;
+use glam::Vec3;
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
-/// Build the tree over every surface.
+/// Bits per axis of the global quantisation grid (Morton codes use 63 bits).
+const GRID_BITS: u32 = 21;
+/// Finest level used for size filtering.
+const MAX_LEVEL: i32 = 64;
+/// `φ`: minimum edge of a box, as a fraction of its size, in the floored volume.
+const VOLUME_FLOOR: f64 = 0.25;
+/// Minimum box size in the floored volume, as a power-of-two fraction of `c_k`.
+const POINT_FLOOR_LEVELS: i32 = 10;
+/// Candidates taken from the seed's own cell.
+const OWN_CELL_CANDIDATES: usize = 32;
+/// Candidates taken from each neighbouring cell.
+const CELL_CANDIDATES: usize = 8;
+/// Candidates kept (nearest centres) for the greedy growth.
+const MAX_CANDIDATES: usize = 16;
+/// Levels with at least this many objects sort in parallel.
+const PAR_SORT_MIN: usize = 16_384;
+
+/// Build the PROXI tree over every surface.
 pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     let all: Vec<u32> = (0..prims.len() as u32).collect();
     let mut t = BuildTree::default();
@@ -15,19 +77,584 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
 /// Cluster the surfaces `subset` bottom-up, adding the nodes to `out`; returns the id of the
 /// subtree's root, whose box is tight around the subset. Used by `okdt-p` to re-cluster
 /// over-full clusters locally.
+///
+/// The root is always the last node pushed to `out`, and every node pushed by this call
+/// belongs to the subtree. An empty subset gives one empty node; a single surface gives one
+/// node holding it.
 pub fn build_subset(
     prims: &Prims,
     subset: &[u32],
-    _cfg: &ClusterConfig,
+    cfg: &ClusterConfig,
     out: &mut BuildTree,
 ) -> u32 {
-    let mut bbox = Aabb::EMPTY;
-    for &s in subset {
-        bbox.grow_box(&prims.bbox[s as usize]);
+    Builder::new(prims, subset, cfg, out).run()
+}
+
+/// What an object of a level stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Member {
+    Surface(u32),
+    Node(u32),
+}
+
+/// An object of a level: a surface or a cluster built at a finer level.
+#[derive(Clone, Copy, Debug)]
+struct Object {
+    bbox: Aabb,
+    /// Box centre.
+    center: Vec3,
+    /// Quantised centre on the global grid.
+    q: [u32; 3],
+    /// Morton code of `q`.
+    code: u64,
+    member: Member,
+}
+
+/// The global quantisation grid over the subset's bounding box.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    origin: Vec3,
+    /// Edge of one quantisation cell.
+    unit: f64,
+}
+
+impl Grid {
+    fn quantize(&self, p: Vec3) -> [u32; 3] {
+        let max = ((1u32 << GRID_BITS) - 1) as f64;
+        let f = |x: f32, o: f32| -> u32 {
+            let v = ((x as f64 - o as f64) / self.unit).floor();
+            // NaN casts to 0; the clamp keeps out-of-range values on the grid.
+            v.clamp(0.0, max) as u32
+        };
+        [
+            f(p.x, self.origin.x),
+            f(p.y, self.origin.y),
+            f(p.z, self.origin.z),
+        ]
     }
-    out.push(BuildNode {
-        bbox,
-        children: vec![],
-        surfaces: subset.to_vec(),
-    })
+}
+
+/// Spread the low 21 bits of `v` to every third bit.
+#[inline]
+fn part1by2(v: u32) -> u64 {
+    let mut x = (v as u64) & 0x1f_ffff;
+    x = (x | x << 32) & 0x001f_0000_0000_ffff;
+    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    x = (x | x << 2) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// Morton code of grid coordinates (21 bits each).
+#[inline]
+fn morton(q: [u32; 3]) -> u64 {
+    part1by2(q[0]) | part1by2(q[1]) << 1 | part1by2(q[2]) << 2
+}
+
+/// Multiplicative hasher for cell keys (lookups only; no iteration over the map).
+#[derive(Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        let h = (self.0 ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = h ^ (h >> 29);
+    }
+}
+
+type CellMap = HashMap<u64, (u32, u32), BuildHasherDefault<CellHasher>>;
+
+/// Floored box volume `V(b)` (see the module docs); `floor_len` is `c_k / 2^10`.
+#[inline]
+fn floored_volume(b: &Aabb, floor_len: f64) -> f64 {
+    let e = b.extent();
+    let m = VOLUME_FLOOR * (e.max_element() as f64).max(floor_len);
+    (e.x as f64).max(m) * (e.y as f64).max(m) * (e.z as f64).max(m)
+}
+
+/// "Next ungrouped position" skip list with path halving.
+struct NextFree(Vec<u32>);
+
+impl NextFree {
+    fn new(n: usize) -> Self {
+        NextFree((0..=n as u32).collect())
+    }
+
+    /// Smallest ungrouped position `≥ i` (`n` when none).
+    #[inline]
+    fn find(&mut self, mut i: u32) -> u32 {
+        let v = &mut self.0;
+        while v[i as usize] != i {
+            let next = v[v[i as usize] as usize];
+            v[i as usize] = next;
+            i = next;
+        }
+        i
+    }
+
+    /// Mark position `i` grouped.
+    #[inline]
+    fn take(&mut self, i: u32) {
+        self.0[i as usize] = i + 1;
+    }
+}
+
+struct Builder<'a> {
+    prims: &'a Prims,
+    subset: &'a [u32],
+    max_children: usize,
+    out: &'a mut BuildTree,
+    objects: Vec<Object>,
+    grid: Grid,
+    /// Reference size `s_ref` (level 0 object size bound).
+    s_ref: f64,
+    /// Finest level.
+    k_fine: i32,
+}
+
+impl<'a> Builder<'a> {
+    fn new(
+        prims: &'a Prims,
+        subset: &'a [u32],
+        cfg: &ClusterConfig,
+        out: &'a mut BuildTree,
+    ) -> Self {
+        let mut bounds = Aabb::EMPTY;
+        let mut s_max = 0.0f64;
+        let mut s_min = f64::INFINITY;
+        for &s in subset {
+            let b = &prims.bbox[s as usize];
+            bounds.grow_box(b);
+            let size = b.size() as f64;
+            if size > 0.0 && size.is_finite() {
+                s_max = s_max.max(size);
+                s_min = s_min.min(size);
+            }
+        }
+        let extent = bounds.size() as f64;
+        let extent = if extent > 0.0 && extent.is_finite() {
+            extent
+        } else {
+            1.0
+        };
+        let origin = if bounds.is_empty() || !bounds.min.is_finite() {
+            Vec3::ZERO
+        } else {
+            bounds.min
+        };
+        let grid = Grid {
+            origin,
+            unit: extent / (1u64 << GRID_BITS) as f64,
+        };
+        let (s_ref, k_fine) = if s_max > 0.0 {
+            let k = (s_max / s_min).log2().floor();
+            (s_max, (k as i32).clamp(0, MAX_LEVEL))
+        } else {
+            (extent, 0)
+        };
+        Builder {
+            prims,
+            subset,
+            max_children: cfg.max_children.max(2),
+            out,
+            objects: Vec::new(),
+            grid,
+            s_ref,
+            k_fine,
+        }
+    }
+
+    /// Level of an object of size `size`: `floor(log2(s_ref / size))` clamped to the levels.
+    fn level_of(&self, size: f32) -> i32 {
+        let size = size as f64;
+        if !(size > 0.0) || !size.is_finite() {
+            return self.k_fine;
+        }
+        let k = (self.s_ref / size).log2().floor();
+        if k.is_nan() {
+            return self.k_fine;
+        }
+        (k.clamp(0.0, self.k_fine as f64)) as i32
+    }
+
+    fn make_object(&self, bbox: Aabb, member: Member) -> Object {
+        let center = bbox.center();
+        let q = self.grid.quantize(center);
+        Object {
+            bbox,
+            center,
+            q,
+            code: morton(q),
+            member,
+        }
+    }
+
+    fn run(mut self) -> u32 {
+        match self.subset.len() {
+            0 => {
+                return self.out.push(BuildNode::default());
+            }
+            1 => {
+                let s = self.subset[0];
+                return self.out.push(BuildNode {
+                    bbox: self.prims.bbox[s as usize],
+                    children: vec![],
+                    surfaces: vec![s],
+                });
+            }
+            _ => {}
+        }
+        // Surface objects, then size filtering into the levels 0..=k_fine.
+        let this = &self;
+        let surf: Vec<Object> = self
+            .subset
+            .par_iter()
+            .map(|&s| this.make_object(this.prims.bbox[s as usize], Member::Surface(s)))
+            .collect();
+        let levels: Vec<i32> = surf
+            .par_iter()
+            .map(|o| this.level_of(o.bbox.size()))
+            .collect();
+        self.objects = surf;
+        let mut pending: Vec<Vec<u32>> = vec![Vec::new(); self.k_fine as usize + 1];
+        for (i, &k) in levels.iter().enumerate() {
+            pending[k as usize].push(i as u32);
+        }
+        // Objects of the levels below 0 (one level at a time).
+        let mut coarse: Vec<u32> = Vec::new();
+        let mut alive = self.subset.len();
+        let mut k = self.k_fine;
+        loop {
+            let objs = if k >= 0 {
+                std::mem::take(&mut pending[k as usize])
+            } else {
+                std::mem::take(&mut coarse)
+            };
+            if !objs.is_empty() {
+                let merged = self.group_level(k, objs, &mut pending, &mut coarse);
+                alive -= merged;
+            }
+            if alive == 1 {
+                break;
+            }
+            k -= 1;
+            // Safety net: the cells cover the whole subset long before this; if grouping
+            // ever stalled, join what is left in Morton order.
+            if k < -(GRID_BITS as i32) - 64 - 2 * MAX_LEVEL {
+                let mut rest: Vec<u32> = pending.iter_mut().flat_map(std::mem::take).collect();
+                rest.append(&mut coarse);
+                return self.join_rest(rest);
+            }
+        }
+        let root = pending
+            .iter()
+            .flatten()
+            .chain(coarse.iter())
+            .next()
+            .copied()
+            .expect("one object is alive");
+        match self.objects[root as usize].member {
+            Member::Node(id) => id,
+            Member::Surface(s) => self.out.push(BuildNode {
+                bbox: self.prims.bbox[s as usize],
+                children: vec![],
+                surfaces: vec![s],
+            }),
+        }
+    }
+
+    /// Group the objects `objs` of level `k`; the resulting objects go to `pending`
+    /// (levels ≥ 0) or `coarse` (level k − 1 < 0). Returns how many objects disappeared.
+    fn group_level(
+        &mut self,
+        k: i32,
+        mut objs: Vec<u32>,
+        pending: &mut [Vec<u32>],
+        coarse: &mut Vec<u32>,
+    ) -> usize {
+        let c_k = self.s_ref * (-(k as f64)).exp2();
+        let size_limit = (2.0 * c_k) as f32;
+        let floor_len = c_k * (-(POINT_FLOOR_LEVELS as f64)).exp2();
+        let m = {
+            let r = (c_k / self.grid.unit).log2().ceil();
+            if r.is_nan() {
+                0
+            } else {
+                r.clamp(0.0, GRID_BITS as f64) as u32
+            }
+        };
+        let shift = 3 * m;
+        let cells_per_axis: i64 = 1i64 << (GRID_BITS - m);
+
+        let objects = &self.objects;
+        let key = |&i: &u32| (objects[i as usize].code, i);
+        if objs.len() >= PAR_SORT_MIN {
+            objs.par_sort_unstable_by_key(key);
+        } else {
+            objs.sort_unstable_by_key(key);
+        }
+        let n = objs.len();
+        // Cells are contiguous runs of the Morton order.
+        let mut cells = CellMap::with_capacity_and_hasher(n / 2 + 1, Default::default());
+        let mut start = 0usize;
+        while start < n {
+            let ck = objects[objs[start] as usize].code >> shift;
+            let mut end = start + 1;
+            while end < n && objects[objs[end] as usize].code >> shift == ck {
+                end += 1;
+            }
+            cells.insert(ck, (start as u32, end as u32));
+            start = end;
+        }
+
+        let mut free = NextFree::new(n);
+        let mut cand: Vec<(f32, u32)> = Vec::with_capacity(27 * CELL_CANDIDATES);
+        let mut used = Vec::with_capacity(MAX_CANDIDATES);
+        let mut members: Vec<u32> = Vec::with_capacity(self.max_children);
+        let mut results: Vec<(u32, i32)> = Vec::with_capacity(n);
+        let mut new_nodes: Vec<BuildNode> = Vec::new();
+        let mut merged = 0usize;
+        // New clusters become objects `first_new_obj + index` once the level is done.
+        let first_new_obj = objects.len() as u32;
+
+        for p in 0..n as u32 {
+            if free.find(p) != p {
+                continue;
+            }
+            free.take(p);
+            let seed = &objects[objs[p as usize] as usize];
+            let cell = [
+                (seed.q[0] >> m) as i64,
+                (seed.q[1] >> m) as i64,
+                (seed.q[2] >> m) as i64,
+            ];
+            cand.clear();
+            // Own cell first, then the 26 neighbours in a fixed order.
+            for (ni, d) in NEIGHBOURS.iter().enumerate() {
+                let c = [cell[0] + d[0], cell[1] + d[1], cell[2] + d[2]];
+                if c.iter().any(|&x| x < 0 || x >= cells_per_axis) {
+                    continue;
+                }
+                let ck = morton([c[0] as u32, c[1] as u32, c[2] as u32]);
+                let Some(&(s, e)) = cells.get(&ck) else {
+                    continue;
+                };
+                let cap = if ni == 0 {
+                    OWN_CELL_CANDIDATES
+                } else {
+                    CELL_CANDIDATES
+                };
+                let mut taken = 0;
+                let mut j = free.find(s);
+                while j < e && taken < cap {
+                    let o = &objects[objs[j as usize] as usize];
+                    cand.push((o.center.distance_squared(seed.center), j));
+                    taken += 1;
+                    j = free.find(j + 1);
+                }
+            }
+            let mut group_box = seed.bbox;
+            if !cand.is_empty() {
+                let order =
+                    |a: &(f32, u32), b: &(f32, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+                if cand.len() > MAX_CANDIDATES {
+                    cand.select_nth_unstable_by(MAX_CANDIDATES - 1, order);
+                    cand.truncate(MAX_CANDIDATES);
+                }
+                cand.sort_unstable_by(order);
+                // Greedy growth minimising the floored volume ratio.
+                used.clear();
+                used.resize(cand.len(), false);
+                members.clear();
+                members.push(p);
+                let mut sum_v = floored_volume(&seed.bbox, floor_len);
+                while members.len() < self.max_children {
+                    let mut best: Option<(f64, usize, Aabb, f64)> = None;
+                    for (ci, &(_, j)) in cand.iter().enumerate() {
+                        if used[ci] {
+                            continue;
+                        }
+                        let o = &objects[objs[j as usize] as usize];
+                        let u = group_box.union(&o.bbox);
+                        // `!(a <= b)` also rejects NaN sizes.
+                        if !(u.size() <= size_limit) {
+                            continue;
+                        }
+                        let v_o = floored_volume(&o.bbox, floor_len);
+                        let ratio = floored_volume(&u, floor_len) / (sum_v + v_o);
+                        if best.is_none_or(|b| ratio < b.0) {
+                            best = Some((ratio, ci, u, v_o));
+                        }
+                    }
+                    let Some((_, ci, u, v_o)) = best else {
+                        break;
+                    };
+                    used[ci] = true;
+                    let j = cand[ci].1;
+                    free.take(j);
+                    members.push(j);
+                    group_box = u;
+                    sum_v += v_o;
+                }
+            } else {
+                members.clear();
+                members.push(p);
+            }
+            if members.len() == 1 {
+                results.push((objs[p as usize], k - 1));
+                continue;
+            }
+            merged += members.len() - 1;
+            let mut node = BuildNode {
+                bbox: group_box,
+                children: Vec::new(),
+                surfaces: Vec::new(),
+            };
+            for &j in &members {
+                match objects[objs[j as usize] as usize].member {
+                    Member::Surface(s) => node.surfaces.push(s),
+                    Member::Node(id) => node.children.push(id),
+                }
+            }
+            let level = (k - 1).min(self.level_of(group_box.size()));
+            results.push((first_new_obj + new_nodes.len() as u32, level));
+            new_nodes.push(node);
+        }
+
+        // Push the new clusters in creation order and hand everything to its next level.
+        for node in new_nodes {
+            let bbox = node.bbox;
+            let id = self.out.push(node);
+            let obj = self.make_object(bbox, Member::Node(id));
+            self.objects.push(obj);
+        }
+        for (o, level) in results {
+            if level >= 0 {
+                pending[level as usize].push(o);
+            } else {
+                coarse.push(o);
+            }
+        }
+        merged
+    }
+
+    /// Fallback: join `rest` in groups of `max_children` (Morton order) until one remains.
+    fn join_rest(&mut self, mut rest: Vec<u32>) -> u32 {
+        loop {
+            let objects = &self.objects;
+            rest.sort_unstable_by_key(|&i| (objects[i as usize].code, i));
+            if rest.len() == 1 {
+                break;
+            }
+            let mut next = Vec::with_capacity(rest.len() / self.max_children + 1);
+            for chunk in rest.chunks(self.max_children) {
+                if chunk.len() == 1 {
+                    next.push(chunk[0]);
+                    continue;
+                }
+                let mut node = BuildNode::default();
+                for &o in chunk {
+                    let obj = &self.objects[o as usize];
+                    node.bbox.grow_box(&obj.bbox);
+                    match obj.member {
+                        Member::Surface(s) => node.surfaces.push(s),
+                        Member::Node(id) => node.children.push(id),
+                    }
+                }
+                let bbox = node.bbox;
+                let id = self.out.push(node);
+                let obj = self.make_object(bbox, Member::Node(id));
+                self.objects.push(obj);
+                next.push(self.objects.len() as u32 - 1);
+            }
+            rest = next;
+        }
+        match self.objects[rest[0] as usize].member {
+            Member::Node(id) => id,
+            Member::Surface(s) => self.out.push(BuildNode {
+                bbox: self.prims.bbox[s as usize],
+                children: vec![],
+                surfaces: vec![s],
+            }),
+        }
+    }
+}
+
+/// The seed's cell first, then its 26 neighbours.
+const NEIGHBOURS: [[i64; 3]; 27] = {
+    let mut a = [[0i64; 3]; 27];
+    let mut i = 1;
+    let mut dz = -1;
+    while dz <= 1 {
+        let mut dy = -1;
+        while dy <= 1 {
+            let mut dx = -1;
+            while dx <= 1 {
+                if !(dx == 0 && dy == 0 && dz == 0) {
+                    a[i] = [dx, dy, dz];
+                    i += 1;
+                }
+                dx += 1;
+            }
+            dy += 1;
+        }
+        dz += 1;
+    }
+    a
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_interleaves_bits() {
+        assert_eq!(morton([1, 0, 0]), 1);
+        assert_eq!(morton([0, 1, 0]), 2);
+        assert_eq!(morton([0, 0, 1]), 4);
+        assert_eq!(morton([3, 0, 0]), 0b1001);
+        let m = (1u32 << GRID_BITS) - 1;
+        assert_eq!(morton([m, m, m]), (1u64 << 63) - 1);
+    }
+
+    #[test]
+    fn neighbours_are_the_27_offsets() {
+        let mut v: Vec<[i64; 3]> = NEIGHBOURS.to_vec();
+        assert_eq!(v[0], [0, 0, 0]);
+        v.sort();
+        v.dedup();
+        assert_eq!(v.len(), 27);
+    }
+
+    #[test]
+    fn floored_volume_of_flat_and_point_boxes() {
+        let flat = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 2.0, 0.0));
+        assert!((floored_volume(&flat, 0.0) - 1.0 * 2.0 * 0.5).abs() < 1e-12);
+        let point = Aabb::new(Vec3::ONE, Vec3::ONE);
+        let l = 0.01;
+        assert!((floored_volume(&point, l) - (0.25 * l).powi(3)).abs() < 1e-18);
+        let cube = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
+        assert!((floored_volume(&cube, 0.0) - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn next_free_skips_taken() {
+        let mut f = NextFree::new(5);
+        f.take(1);
+        f.take(2);
+        assert_eq!(f.find(0), 0);
+        assert_eq!(f.find(1), 3);
+        f.take(3);
+        f.take(4);
+        assert_eq!(f.find(1), 5);
+    }
 }

@@ -1,20 +1,147 @@
-//! Strategy `sah` (see `spec/clustering.md`). Placeholder until the strategy lands: one node
-//! holding every surface, which is a valid tree for the other modules to work with.
+//! Strategy `sah`: a binned surface-area-heuristic BVH, the ray-tracing baseline of
+//! `spec/clustering.md` (paper §3.2.2 discusses the trade-off).
+//!
+//! Binary tree of tight boxes with surfaces only at the leaves. A node holding more than
+//! `sah_leaf_size` surfaces is always split: the centroids are binned into [`BINS`] equal bins
+//! along each axis of the centroid bounds, and the plane between bins minimising
+//! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
+//! then lowest plane). When all centroids coincide the surfaces are split in two halves of the
+//! (deterministic) current order.
 
+use super::topdown::{self, Item, Out, PAR_MIN};
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use crate::geom::Aabb;
 
+/// Number of bins per axis.
+pub const BINS: usize = 32;
+
 /// Build the tree.
-pub fn build(prims: &Prims, _cfg: &ClusterConfig) -> BuildTree {
+pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
+    let leaf = cfg.sah_leaf_size.max(1);
+    let mut items = topdown::items(prims);
+    let (out, root) = node_par(leaf, &mut items);
+    out.into_build(root).0
+}
+
+/// Bin index of a centroid coordinate.
+#[inline]
+fn bin_of(x: f32, lo: f32, scale: f32) -> usize {
+    (((x - lo) * scale) as usize).min(BINS - 1)
+}
+
+/// Partition `items` for a split; returns the box and the size of the left part, or `None`
+/// for a leaf.
+fn split(leaf: usize, items: &mut [Item]) -> (Aabb, Option<usize>) {
+    let mut cb = Aabb::EMPTY;
     let mut bbox = Aabb::EMPTY;
-    for b in &prims.bbox {
-        bbox.grow_box(b);
+    for it in items.iter() {
+        cb.grow(it.c);
+        bbox.grow(it.lo);
+        bbox.grow(it.hi);
     }
-    let mut t = BuildTree::default();
-    t.root = t.push(BuildNode {
+    let n = items.len();
+    if n <= leaf {
+        return (bbox, None);
+    }
+    let ext = cb.extent();
+    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin of the left side)
+    for a in 0..3 {
+        if !(ext[a] > 0.0) {
+            continue;
+        }
+        let scale = BINS as f32 / ext[a];
+        let mut boxes = [Aabb::EMPTY; BINS];
+        let mut counts = [0usize; BINS];
+        for it in items.iter() {
+            let b = bin_of(it.c[a], cb.min[a], scale);
+            counts[b] += 1;
+            boxes[b].grow(it.lo);
+            boxes[b].grow(it.hi);
+        }
+        // Right-to-left sweep: area·count of the right side of every plane.
+        let mut right_cost = [0f32; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut cnt = 0usize;
+        for b in (1..BINS).rev() {
+            acc.grow_box(&boxes[b]);
+            cnt += counts[b];
+            right_cost[b - 1] = acc.surface_area() * cnt as f32;
+        }
+        let mut acc = Aabb::EMPTY;
+        let mut cnt = 0usize;
+        for b in 0..BINS - 1 {
+            acc.grow_box(&boxes[b]);
+            cnt += counts[b];
+            if cnt == 0 || cnt == n {
+                continue;
+            }
+            let cost = acc.surface_area() * cnt as f32 + right_cost[b];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, a, b));
+            }
+        }
+    }
+    let nl = match best {
+        Some((_, a, last)) => {
+            let scale = BINS as f32 / ext[a];
+            let lo = cb.min[a];
+            let (_, nl, _) =
+                topdown::partition3(items, |it| (bin_of(it.c[a], lo, scale) > last) as u8 + 1);
+            nl
+        }
+        None => n / 2,
+    };
+    (bbox, Some(nl))
+}
+
+/// Emit a node.
+#[inline]
+fn finish(items: &[Item], children: Vec<u32>, bbox: Aabb, out: &mut Out) -> u32 {
+    let surfaces = if children.is_empty() {
+        topdown::ids(items)
+    } else {
+        Vec::new()
+    };
+    out.push(
+        BuildNode {
+            bbox,
+            children,
+            surfaces,
+        },
         bbox,
-        children: vec![],
-        surfaces: (0..prims.len() as u32).collect(),
-    });
-    t
+    )
+}
+
+/// Sequential build of a subtree into `out`.
+fn node(leaf: usize, items: &mut [Item], out: &mut Out) -> u32 {
+    let (bbox, sp) = split(leaf, items);
+    let Some(nl) = sp else {
+        return finish(items, Vec::new(), bbox, out);
+    };
+    let (l, r) = items.split_at_mut(nl);
+    let a = node(leaf, l, out);
+    let b = node(leaf, r, out);
+    finish(&[], vec![a, b], bbox, out)
+}
+
+/// Parallel build: large subtrees on separate rayon tasks, same ids as [`node`].
+fn node_par(leaf: usize, items: &mut [Item]) -> (Out, Option<u32>) {
+    let mut out = Out::default();
+    if items.is_empty() {
+        return (out, None);
+    }
+    if items.len() < PAR_MIN {
+        let r = node(leaf, items, &mut out);
+        return (out, Some(r));
+    }
+    let (bbox, sp) = split(leaf, items);
+    let Some(nl) = sp else {
+        let r = finish(items, Vec::new(), bbox, &mut out);
+        return (out, Some(r));
+    };
+    let (l, r) = items.split_at_mut(nl);
+    let (a, b) = rayon::join(|| node_par(leaf, l), || node_par(leaf, r));
+    let children = out.append_all(vec![a, b]);
+    let id = finish(&[], children, bbox, &mut out);
+    (out, Some(id))
 }

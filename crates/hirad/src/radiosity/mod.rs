@@ -1,1 +1,25 @@
 //! The hierarchical radiosity solver with clustering (`spec/radiosity.md`).
+//!
+//! - [`element`]: one arena of surface elements (triangle quadtrees) and cluster elements;
+//! - [`link`]: links stored flat and grouped by receiver;
+//! - [`formfactor`]: point-to-disk and analytic point-to-polygon form factors, sampled kernels;
+//! - [`oracle`]: the `bf` and `error` refinement oracles;
+//! - [`visibility`]: shadow rays through the cluster tree (and the volume hook);
+//! - [`solver`]: refine / gather / push-pull until convergence;
+//! - [`config`]: [`SolverConfig`] and presets; [`stats`]: [`SolveStats`];
+//! - [`output`]: per-vertex radiosity meshes and result files.
+//!
+//! Entry point: [`solve`].
+
+pub mod config;
+pub mod element;
+pub mod formfactor;
+pub mod link;
+pub mod oracle;
+pub mod solver;
+pub mod stats;
+pub mod visibility;
+
+pub use config::{Oracle, Reception, SolverConfig, VisibilityMode};
+pub use solver::{solve, solve_cancellable, Solution};
+pub use stats::SolveStats;

@@ -5,12 +5,28 @@
 //! [`RayCaster::closest`] (first hit). Segments are `origin + t·dir`, `t ∈ [tmin, tmax]`, `dir`
 //! not necessarily normalised.
 //!
-//! The current body is a brute-force loop over every triangle (correct, slow): the tree
-//! traversal replaces it.
+//! [`RayCaster::new`] lays the tree out for traversal without changing its topology: nodes in
+//! depth-first pre-order, the boxes of a node's children stored contiguously with the node
+//! (one slab test per child, done by the parent), the triangles attached to each node copied in
+//! node order. Surfaces may hang at inner nodes as well as leaves, boxes may overlap and a node
+//! may have any number of children. The triangle test is watertight ([`watertight`]); the box
+//! test is conservative, so the result equals a brute-force loop over every triangle
+//! ([`RayCaster::occluded_brute`], [`RayCaster::closest_brute`]).
+//!
+//! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
+//! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
+//! through the same tree.
+
+pub mod sample;
+pub mod volume;
+pub mod watertight;
 
 use crate::cluster::ClusterTree;
 use crate::scene::Scene;
 use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use watertight::{intersect, RayPre, TriVerts};
 
 /// A ray hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,75 +35,565 @@ pub struct Hit {
     pub t: f32,
     /// Triangle id.
     pub tri: u32,
-    /// Barycentric coordinates (u for vertex 1, v for vertex 2).
+    /// Barycentric coordinate of vertex 1.
     pub u: f32,
+    /// Barycentric coordinate of vertex 2.
     pub v: f32,
+}
+
+/// A query segment `origin + t·dir`, `t ∈ [tmin, tmax]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl Segment {
+    /// Lower end of the parameter range of the paper's ray-casting test (`experiments.md` §2).
+    pub const SPEC_TMIN: f32 = 1e-4;
+    /// Upper end of the parameter range of the paper's ray-casting test.
+    pub const SPEC_TMAX: f32 = 1.0 - 1e-4;
+
+    /// Segment from `p` to `q` as the ray-casting test defines it: origin `p`, direction
+    /// `q − p`, `t ∈ [1e-4, 1 − 1e-4]`.
+    pub fn between(p: Vec3, q: Vec3) -> Segment {
+        Segment {
+            origin: p,
+            dir: q - p,
+            tmin: Self::SPEC_TMIN,
+            tmax: Self::SPEC_TMAX,
+        }
+    }
+}
+
+/// Traversal counters of one or many queries.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RayStats {
+    /// Queries counted.
+    pub rays: u64,
+    /// Nodes popped and processed (the root included when its box is hit).
+    pub nodes: u64,
+    /// Slab tests (root box and child boxes).
+    pub boxes: u64,
+    /// Ray–triangle tests.
+    pub tris: u64,
+}
+
+impl RayStats {
+    /// Add another set of counters.
+    pub fn add(&mut self, o: &RayStats) {
+        self.rays += o.rays;
+        self.nodes += o.nodes;
+        self.boxes += o.boxes;
+        self.tris += o.tris;
+    }
+
+    /// Mean nodes visited per ray.
+    pub fn nodes_per_ray(&self) -> f64 {
+        self.nodes as f64 / self.rays.max(1) as f64
+    }
+
+    /// Mean triangle tests per ray.
+    pub fn tris_per_ray(&self) -> f64 {
+        self.tris as f64 / self.rays.max(1) as f64
+    }
+
+    /// Mean box tests per ray.
+    pub fn boxes_per_ray(&self) -> f64 {
+        self.boxes as f64 / self.rays.max(1) as f64
+    }
+}
+
+/// A node of the traversal layout.
+#[derive(Clone, Copy, Debug, Default)]
+struct FlatNode {
+    /// Range of the node's triangles in [`Layout::tris`].
+    tri_start: u32,
+    tri_end: u32,
+    /// Range of the node's child slots in [`Layout::child_box`] / [`Layout::child_node`].
+    child_start: u32,
+    child_end: u32,
+}
+
+/// Traversal layout of a cluster tree (depth-first pre-order).
+#[derive(Clone, Debug, Default)]
+struct Layout {
+    nodes: Vec<FlatNode>,
+    /// Box of the root, `[minx, miny, minz, maxx, maxy, maxz]`.
+    root_box: [f32; 6],
+    /// Boxes of the child slots.
+    child_box: Vec<[f32; 6]>,
+    /// Layout index of the node of each child slot.
+    child_node: Vec<u32>,
+    /// Triangle corners in node order.
+    tris: Vec<TriVerts>,
+    /// Scene triangle id of each entry of `tris`.
+    tri_id: Vec<u32>,
+    /// Layout index → tree node id.
+    tree_id: Vec<u32>,
+}
+
+fn box6(b: &crate::geom::Aabb) -> [f32; 6] {
+    [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
+}
+
+impl Layout {
+    fn new(scene: &Scene, tree: &ClusterTree) -> Layout {
+        let n = tree.nodes.len();
+        if n == 0 {
+            return Layout::default();
+        }
+        // Depth-first pre-order, children in their tree order.
+        let mut order = Vec::with_capacity(n);
+        let mut new_id = vec![u32::MAX; n];
+        let mut stack = vec![0u32];
+        while let Some(id) = stack.pop() {
+            if new_id[id as usize] != u32::MAX {
+                continue; // defensive: a malformed tree listing a node twice
+            }
+            new_id[id as usize] = order.len() as u32;
+            order.push(id);
+            let node = &tree.nodes[id as usize];
+            for c in node.children().rev() {
+                if (c as usize) < n {
+                    stack.push(c);
+                }
+            }
+        }
+        let mut nodes = Vec::with_capacity(order.len());
+        let mut child_box = Vec::with_capacity(order.len());
+        let mut child_node = Vec::with_capacity(order.len());
+        let mut tris = Vec::with_capacity(tree.surfaces.len());
+        let mut tri_id = Vec::with_capacity(tree.surfaces.len());
+        let nt = scene.num_triangles() as u32;
+        for &id in &order {
+            let tree_node = &tree.nodes[id as usize];
+            let tri_start = tris.len() as u32;
+            let end = (tree_node.first_surface as usize + tree_node.num_surfaces as usize)
+                .min(tree.surfaces.len());
+            let start = (tree_node.first_surface as usize).min(end);
+            for &s in &tree.surfaces[start..end] {
+                if s >= nt {
+                    continue;
+                }
+                let [a, b, c] = scene.tri_vertices(s as usize);
+                tris.push([a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]);
+                tri_id.push(s);
+            }
+            let child_start = child_box.len() as u32;
+            for c in tree_node.children() {
+                if (c as usize) < n && new_id[c as usize] != u32::MAX {
+                    child_box.push(box6(&tree.nodes[c as usize].bbox));
+                    child_node.push(new_id[c as usize]);
+                }
+            }
+            nodes.push(FlatNode {
+                tri_start,
+                tri_end: tris.len() as u32,
+                child_start,
+                child_end: child_box.len() as u32,
+            });
+        }
+        Layout {
+            nodes,
+            root_box: box6(&tree.nodes[0].bbox),
+            child_box,
+            child_node,
+            tris,
+            tri_id,
+            tree_id: order,
+        }
+    }
+}
+
+/// Traversal stack kept in a fixed array, spilling to the heap only for very deep or very wide
+/// trees.
+struct Stack<T: Copy + Default, const N: usize> {
+    buf: [T; N],
+    len: usize,
+    heap: Vec<T>,
+    spilled: bool,
+}
+
+impl<T: Copy + Default, const N: usize> Stack<T, N> {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            buf: [T::default(); N],
+            len: 0,
+            heap: Vec::new(),
+            spilled: false,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, x: T) {
+        if !self.spilled {
+            if self.len < N {
+                self.buf[self.len] = x;
+                self.len += 1;
+                return;
+            }
+            self.heap.reserve(2 * N);
+            self.heap.extend_from_slice(&self.buf[..self.len]);
+            self.spilled = true;
+        }
+        self.heap.push(x);
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        if self.spilled {
+            return self.heap.pop();
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.buf[self.len])
+    }
+
+    #[inline(always)]
+    fn size(&self) -> usize {
+        if self.spilled {
+            self.heap.len()
+        } else {
+            self.len
+        }
+    }
+
+    /// The `k` topmost entries.
+    #[inline(always)]
+    fn top_mut(&mut self, k: usize) -> &mut [T] {
+        if self.spilled {
+            let l = self.heap.len();
+            &mut self.heap[l - k..]
+        } else {
+            &mut self.buf[self.len - k..self.len]
+        }
+    }
+}
+
+/// Entry of the closest-hit stack: node and entry distance of its box.
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    t: f32,
 }
 
 /// Ray caster over a scene and one of its cluster trees.
 pub struct RayCaster<'a> {
     pub scene: &'a Scene,
     pub tree: &'a ClusterTree,
+    layout: Layout,
 }
+
+/// Stack size kept on the machine stack.
+const STACK: usize = 128;
 
 impl<'a> RayCaster<'a> {
     /// Prepare the traversal data of `tree`.
     pub fn new(scene: &'a Scene, tree: &'a ClusterTree) -> Self {
-        Self { scene, tree }
+        Self {
+            scene,
+            tree,
+            layout: Layout::new(scene, tree),
+        }
+    }
+
+    /// Bytes used by the traversal layout.
+    pub fn memory_bytes(&self) -> usize {
+        let l = &self.layout;
+        l.nodes.len() * std::mem::size_of::<FlatNode>()
+            + l.child_box.len() * (24 + 4)
+            + l.tris.len() * (36 + 4)
+            + l.tree_id.len() * 4
     }
 
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
+    #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
-        (0..self.scene.num_triangles())
-            .any(|i| intersect(self.scene.tri_vertices(i), origin, dir, tmin, tmax).is_some())
+        self.occluded_impl::<false>(origin, dir, tmin, tmax, &mut RayStats::default())
     }
 
     /// The closest hit for `t ∈ [tmin, tmax]`.
+    #[inline]
     pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        self.closest_impl::<false>(origin, dir, tmin, tmax, &mut RayStats::default())
+    }
+
+    /// [`RayCaster::occluded`] that also adds its traversal counters to `stats`.
+    pub fn occluded_stats(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> bool {
+        stats.rays += 1;
+        self.occluded_impl::<true>(origin, dir, tmin, tmax, stats)
+    }
+
+    /// [`RayCaster::closest`] that also adds its traversal counters to `stats`.
+    pub fn closest_stats(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> Option<Hit> {
+        stats.rays += 1;
+        self.closest_impl::<true>(origin, dir, tmin, tmax, stats)
+    }
+
+    /// Occlusion of many segments, in parallel; the result is in input order and does not
+    /// depend on the number of threads.
+    pub fn occluded_batch(&self, segs: &[Segment]) -> Vec<bool> {
+        segs.par_iter()
+            .with_min_len(256)
+            .map(|s| self.occluded(s.origin, s.dir, s.tmin, s.tmax))
+            .collect()
+    }
+
+    /// Closest hits of many segments, in parallel, in input order.
+    pub fn closest_batch(&self, segs: &[Segment]) -> Vec<Option<Hit>> {
+        segs.par_iter()
+            .with_min_len(256)
+            .map(|s| self.closest(s.origin, s.dir, s.tmin, s.tmax))
+            .collect()
+    }
+
+    /// Number of occluded segments (parallel, deterministic).
+    pub fn count_occluded(&self, segs: &[Segment]) -> u64 {
+        segs.par_iter()
+            .with_min_len(256)
+            .filter(|s| self.occluded(s.origin, s.dir, s.tmin, s.tmax))
+            .count() as u64
+    }
+
+    /// Traversal counters of occlusion queries over `segs` (parallel; counts are sums, hence
+    /// independent of the thread count).
+    pub fn occluded_batch_stats(&self, segs: &[Segment]) -> (u64, RayStats) {
+        segs.par_chunks(1024)
+            .map(|ch| {
+                let mut st = RayStats::default();
+                let mut hits = 0u64;
+                for s in ch {
+                    hits += self.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st) as u64;
+                }
+                (hits, st)
+            })
+            .reduce(
+                || (0, RayStats::default()),
+                |mut a, b| {
+                    a.0 += b.0;
+                    a.1.add(&b.1);
+                    a
+                },
+            )
+    }
+
+    /// Traversal counters of closest-hit queries over `segs`; also returns the number of hits.
+    pub fn closest_batch_stats(&self, segs: &[Segment]) -> (u64, RayStats) {
+        segs.par_chunks(1024)
+            .map(|ch| {
+                let mut st = RayStats::default();
+                let mut hits = 0u64;
+                for s in ch {
+                    hits += self
+                        .closest_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st)
+                        .is_some() as u64;
+                }
+                (hits, st)
+            })
+            .reduce(
+                || (0, RayStats::default()),
+                |mut a, b| {
+                    a.0 += b.0;
+                    a.1.add(&b.1);
+                    a
+                },
+            )
+    }
+
+    /// Brute-force occlusion: every triangle of the scene, same triangle test.
+    pub fn occluded_brute(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        let Some(r) = RayPre::new(origin, dir) else {
+            return false;
+        };
+        (0..self.scene.num_triangles()).any(|i| {
+            let [a, b, c] = self.scene.tri_vertices(i);
+            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+            intersect(&r, &v, tmin, tmax).is_some()
+        })
+    }
+
+    /// Brute-force closest hit: every triangle of the scene, same triangle test. Ties in `t`
+    /// go to the lowest triangle id.
+    pub fn closest_brute(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let r = RayPre::new(origin, dir)?;
         let mut best: Option<Hit> = None;
         let mut tmax = tmax;
         for i in 0..self.scene.num_triangles() {
-            if let Some((t, u, v)) = intersect(self.scene.tri_vertices(i), origin, dir, tmin, tmax)
-            {
-                tmax = t;
-                best = Some(Hit {
-                    t,
-                    tri: i as u32,
-                    u,
-                    v,
-                });
+            let [a, b, c] = self.scene.tri_vertices(i);
+            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+            if let Some((t, u, v)) = intersect(&r, &v, tmin, tmax) {
+                if best.is_none_or(|h| t < h.t) {
+                    tmax = t;
+                    best = Some(Hit {
+                        t,
+                        tri: i as u32,
+                        u,
+                        v,
+                    });
+                }
             }
         }
         best
     }
+
+    #[inline(always)]
+    fn occluded_impl<const STATS: bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> bool {
+        let l = &self.layout;
+        if l.nodes.is_empty() {
+            return false;
+        }
+        let Some(r) = RayPre::new(origin, dir) else {
+            return false;
+        };
+        if !(tmin <= tmax) {
+            return false;
+        }
+        if STATS {
+            stats.boxes += 1;
+        }
+        if r.slab(&l.root_box, tmin, tmax).is_none() {
+            return false;
+        }
+        let mut stack: Stack<u32, STACK> = Stack::new();
+        stack.push(0);
+        while let Some(n) = stack.pop() {
+            let node = l.nodes[n as usize];
+            if STATS {
+                stats.nodes += 1;
+            }
+            for tri in &l.tris[node.tri_start as usize..node.tri_end as usize] {
+                if STATS {
+                    stats.tris += 1;
+                }
+                if intersect(&r, tri, tmin, tmax).is_some() {
+                    return true;
+                }
+            }
+            let cs = node.child_start as usize;
+            let ce = node.child_end as usize;
+            if STATS {
+                stats.boxes += (ce - cs) as u64;
+            }
+            for (b, &c) in l.child_box[cs..ce].iter().zip(&l.child_node[cs..ce]).rev() {
+                if r.slab(b, tmin, tmax).is_some() {
+                    stack.push(c);
+                }
+            }
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn closest_impl<const STATS: bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> Option<Hit> {
+        let l = &self.layout;
+        if l.nodes.is_empty() {
+            return None;
+        }
+        let r = RayPre::new(origin, dir)?;
+        if !(tmin <= tmax) {
+            return None;
+        }
+        if STATS {
+            stats.boxes += 1;
+        }
+        let t0 = r.slab(&l.root_box, tmin, tmax)?;
+        let mut best_t = tmax;
+        let mut best: Option<(u32, f32, f32)> = None;
+        let mut stack: Stack<Entry, STACK> = Stack::new();
+        stack.push(Entry { node: 0, t: t0 });
+        while let Some(e) = stack.pop() {
+            if e.t > best_t * watertight::BOX_SLACK {
+                continue;
+            }
+            let node = l.nodes[e.node as usize];
+            if STATS {
+                stats.nodes += 1;
+                stats.tris += (node.tri_end - node.tri_start) as u64;
+                stats.boxes += (node.child_end - node.child_start) as u64;
+            }
+            for k in node.tri_start..node.tri_end {
+                if let Some((t, u, v)) = intersect(&r, &l.tris[k as usize], tmin, best_t) {
+                    // Equal t: keep the lowest triangle id, as the brute-force loop does.
+                    let better = match best {
+                        None => true,
+                        Some(_) if t < best_t => true,
+                        Some((bk, _, _)) => l.tri_id[k as usize] < l.tri_id[bk as usize],
+                    };
+                    if better {
+                        best_t = t;
+                        best = Some((k, u, v));
+                    }
+                }
+            }
+            let cs = node.child_start as usize;
+            let ce = node.child_end as usize;
+            let before = stack.size();
+            for (b, &c) in l.child_box[cs..ce].iter().zip(&l.child_node[cs..ce]) {
+                if let Some(t) = r.slab(b, tmin, best_t) {
+                    stack.push(Entry { node: c, t });
+                }
+            }
+            let k = stack.size() - before;
+            if k > 1 {
+                // Nearest on top: sort the new entries by decreasing entry distance.
+                let s = stack.top_mut(k);
+                if k <= 16 {
+                    for i in 1..k {
+                        let x = s[i];
+                        let mut j = i;
+                        while j > 0 && s[j - 1].t < x.t {
+                            s[j] = s[j - 1];
+                            j -= 1;
+                        }
+                        s[j] = x;
+                    }
+                } else {
+                    s.sort_by(|a, b| b.t.total_cmp(&a.t));
+                }
+            }
+        }
+        best.map(|(k, u, v)| Hit {
+            t: best_t,
+            tri: l.tri_id[k as usize],
+            u,
+            v,
+        })
+    }
 }
 
-/// Möller–Trumbore (placeholder until the watertight test lands).
-fn intersect(
-    [p0, p1, p2]: [Vec3; 3],
-    o: Vec3,
-    d: Vec3,
-    tmin: f32,
-    tmax: f32,
-) -> Option<(f32, f32, f32)> {
-    let e1 = p1 - p0;
-    let e2 = p2 - p0;
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    if det == 0.0 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - p0;
-    let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    (t >= tmin && t <= tmax).then_some((t, u, v))
-}
+#[cfg(test)]
+mod tests;

@@ -120,12 +120,16 @@ pub struct RawScene {
 pub struct SceneOptions {
     /// ρ = 1 channels are clamped to this value (spec default 0.95).
     pub max_reflectance: f32,
+    /// Overrides the up axis a loader found in the file (`--up`).
+    #[serde(default)]
+    pub up: Option<UpAxis>,
 }
 
 impl Default for SceneOptions {
     fn default() -> Self {
         Self {
             max_reflectance: 0.95,
+            up: None,
         }
     }
 }
@@ -402,6 +406,10 @@ fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
     let path = Path::new(spec);
     if !path.exists() {
         if let Some(raw) = builtin::generate(spec)? {
+            let mut raw = raw;
+            if let Some(up) = opts.up {
+                raw.up = up;
+            }
             return Scene::from_raw(raw, opts);
         }
         if !spec.contains(['/', '.']) {
@@ -420,7 +428,7 @@ fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
-    let raw = match ext.as_str() {
+    let mut raw = match ext.as_str() {
         "obj" => obj::load(path)?,
         "gltf" | "glb" => gltf_io::load(path)?,
         "ply" => ply::load(path)?,
@@ -432,6 +440,9 @@ fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
             ))
         }
     };
+    if let Some(up) = opts.up {
+        raw.up = up;
+    }
     Scene::from_raw(raw, opts)
 }
 

@@ -1,0 +1,328 @@
+//! The element arena: surface elements (triangle quadtrees, split 1→4 at edge midpoints) and
+//! cluster elements (one per [`ClusterTree`] node), addressed by `u32` ids.
+//!
+//! Layout: ids `0..num_clusters` are the cluster nodes (element id = node id, root 0);
+//! then one root surface element per input triangle (front faces, id
+//! `first_root + tri`); with two-sided surfaces the back faces follow (id
+//! `first_root + num_tris + tri`): a back face is a separate element with reversed winding
+//! and normal, its own radiosity and no emission (emitters emit from the front only).
+//! Subdivided surface elements are appended as refinement creates them, four contiguous
+//! children at a time. A cluster's children are its child clusters followed by the root
+//! surface elements of the surfaces attached to it (both faces when two-sided), stored as a
+//! range of [`Elements::cluster_kids`].
+
+use crate::cluster::{ClusterTree, NONE};
+use crate::scene::Scene;
+use glam::{DVec3, Vec3};
+
+/// Kind of an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Surface,
+    Cluster,
+}
+
+/// One element of the hierarchy.
+#[derive(Clone, Debug)]
+pub struct Element {
+    pub kind: Kind,
+    /// Back face of a two-sided surface.
+    pub back: bool,
+    /// Subdivision level below the root surface (0 for roots and clusters).
+    pub level: u16,
+    /// Parent element ([`NONE`] for the root cluster).
+    pub parent: u32,
+    /// Surfaces: id of the first of 4 contiguous children; clusters: offset into
+    /// [`Elements::cluster_kids`]. Meaningless when `num_children == 0`.
+    pub first_child: u32,
+    pub num_children: u32,
+    /// Surfaces: input triangle; clusters: cluster node id.
+    pub tri: u32,
+    /// Corners (surfaces, counter-clockwise around `normal`).
+    pub verts: [Vec3; 3],
+    /// Unit normal (surfaces).
+    pub normal: Vec3,
+    /// Area (surfaces) or total area of the root surfaces inside (clusters).
+    pub area: f32,
+    /// Centroid (surfaces) or area-weighted centroid of the contents (clusters).
+    pub centroid: Vec3,
+    /// Reflectance (surfaces) or area-weighted mean reflectance (clusters).
+    pub rho: Vec3,
+    /// Emitted exitance E = π·L_e (front faces of emitters; zero otherwise).
+    pub emission: Vec3,
+}
+
+impl Element {
+    /// True for cluster elements.
+    #[inline]
+    pub fn is_cluster(&self) -> bool {
+        self.kind == Kind::Cluster
+    }
+
+    /// True when the element has no children yet.
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.num_children == 0
+    }
+}
+
+/// The arena of elements with their radiosity state.
+#[derive(Clone, Debug)]
+pub struct Elements {
+    pub elems: Vec<Element>,
+    /// Children lists of clusters.
+    pub cluster_kids: Vec<u32>,
+    pub num_clusters: u32,
+    /// Id of the root surface element of triangle 0 (front face).
+    pub first_root: u32,
+    /// Number of input triangles.
+    pub num_tris: u32,
+    /// Back faces present.
+    pub two_sided: bool,
+    /// Radiosity B per element (W/m², RGB).
+    pub b: Vec<DVec3>,
+    /// Irradiance gathered through the element's own links in the last gather.
+    pub h: Vec<DVec3>,
+    /// Direct irradiance from the sun and sky (surface elements; zero without them).
+    pub direct: Vec<DVec3>,
+}
+
+impl Elements {
+    /// Build the cluster and root surface elements of a scene and its tree.
+    pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Elements {
+        let nc = tree.nodes.len() as u32;
+        let nt = scene.num_triangles() as u32;
+        let sides = if two_sided { 2 } else { 1 };
+        let total = nc as usize + (nt as usize) * sides;
+        let mut elems = Vec::with_capacity(total + total / 2);
+        for (id, node) in tree.nodes.iter().enumerate() {
+            elems.push(Element {
+                kind: Kind::Cluster,
+                back: false,
+                level: 0,
+                parent: node.parent,
+                first_child: 0,
+                num_children: 0,
+                tri: id as u32,
+                verts: [Vec3::ZERO; 3],
+                normal: Vec3::ZERO,
+                area: 0.0,
+                centroid: node.bbox.center(),
+                rho: Vec3::ZERO,
+                emission: Vec3::ZERO,
+            });
+        }
+        for side in 0..sides {
+            for t in 0..nt as usize {
+                let [a, b, c] = scene.tri_vertices(t);
+                let m = scene.material_of(t);
+                let (verts, normal, emission) = if side == 0 {
+                    (
+                        [a, b, c],
+                        scene.normals[t],
+                        m.emission * std::f32::consts::PI,
+                    )
+                } else {
+                    ([a, c, b], -scene.normals[t], Vec3::ZERO)
+                };
+                elems.push(Element {
+                    kind: Kind::Surface,
+                    back: side == 1,
+                    level: 0,
+                    parent: tree.surface_node[t],
+                    first_child: 0,
+                    num_children: 0,
+                    tri: t as u32,
+                    verts,
+                    normal,
+                    area: scene.areas[t],
+                    centroid: (a + b + c) / 3.0,
+                    rho: m.rho,
+                    emission,
+                });
+            }
+        }
+        // Children lists of clusters.
+        let mut cluster_kids = Vec::with_capacity(nc as usize + nt as usize * sides);
+        for (id, node) in tree.nodes.iter().enumerate() {
+            let start = cluster_kids.len() as u32;
+            cluster_kids.extend(node.children());
+            for &s in tree.node_surfaces(id as u32) {
+                for side in 0..sides as u32 {
+                    cluster_kids.push(nc + side * nt + s);
+                }
+            }
+            let e = &mut elems[id];
+            e.first_child = start;
+            e.num_children = cluster_kids.len() as u32 - start;
+        }
+        // Cluster area, centroid and reflectance, bottom-up (children have larger ids).
+        let mut acc = vec![(0f64, DVec3::ZERO, DVec3::ZERO); nc as usize];
+        for id in (0..nc as usize).rev() {
+            let (mut a, mut c, mut r) = (0f64, DVec3::ZERO, DVec3::ZERO);
+            let e = &elems[id];
+            for &k in &cluster_kids[e.first_child as usize..(e.first_child + e.num_children) as usize]
+            {
+                if k < nc {
+                    let (ka, kc, kr) = acc[k as usize];
+                    a += ka;
+                    c += kc;
+                    r += kr;
+                } else {
+                    let s = &elems[k as usize];
+                    let sa = s.area as f64;
+                    a += sa;
+                    c += s.centroid.as_dvec3() * sa;
+                    r += s.rho.as_dvec3() * sa;
+                }
+            }
+            acc[id] = (a, c, r);
+            let e = &mut elems[id];
+            e.area = a as f32;
+            if a > 0.0 {
+                e.centroid = (c / a).as_vec3();
+                e.rho = (r / a).as_vec3();
+            }
+        }
+        let n = elems.len();
+        Elements {
+            elems,
+            cluster_kids,
+            num_clusters: nc,
+            first_root: nc,
+            num_tris: nt,
+            two_sided,
+            b: vec![DVec3::ZERO; n],
+            h: vec![DVec3::ZERO; n],
+            direct: vec![DVec3::ZERO; n],
+        }
+    }
+
+    /// Number of elements.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.elems.len()
+    }
+
+    /// True when there are no elements (never for a built arena).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.elems.is_empty()
+    }
+
+    /// Number of root surface elements (triangles × faces).
+    #[inline]
+    pub fn num_roots(&self) -> u32 {
+        self.num_tris * if self.two_sided { 2 } else { 1 }
+    }
+
+    /// Ids of the root surface elements.
+    #[inline]
+    pub fn roots(&self) -> std::ops::Range<u32> {
+        self.first_root..self.first_root + self.num_roots()
+    }
+
+    /// Children of an element (cluster kids, or the 4 sub-triangles of a split surface).
+    #[inline]
+    pub fn children(&self, id: u32) -> ChildIter<'_> {
+        let e = &self.elems[id as usize];
+        match e.kind {
+            Kind::Cluster => ChildIter::Slice(
+                self.cluster_kids
+                    [e.first_child as usize..(e.first_child + e.num_children) as usize]
+                    .iter(),
+            ),
+            Kind::Surface => ChildIter::Range(e.first_child..e.first_child + e.num_children),
+        }
+    }
+
+    /// Split surface element `id` into 4 children (midpoint subdivision) unless it already
+    /// has them. The children start with the parent's radiosity.
+    pub fn subdivide(&mut self, id: u32) {
+        let e = &self.elems[id as usize];
+        if e.kind != Kind::Surface || e.num_children > 0 {
+            return;
+        }
+        let [a, b, c] = e.verts;
+        let ab = (a + b) * 0.5;
+        let bc = (b + c) * 0.5;
+        let ca = (c + a) * 0.5;
+        let tris = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]];
+        let first = self.elems.len() as u32;
+        let proto = e.clone();
+        let bparent = self.b[id as usize];
+        for v in tris {
+            self.elems.push(Element {
+                level: proto.level + 1,
+                parent: id,
+                first_child: 0,
+                num_children: 0,
+                verts: v,
+                area: proto.area * 0.25,
+                centroid: (v[0] + v[1] + v[2]) / 3.0,
+                ..proto.clone()
+            });
+            self.b.push(bparent);
+            self.h.push(DVec3::ZERO);
+            self.direct.push(DVec3::ZERO);
+        }
+        let e = &mut self.elems[id as usize];
+        e.first_child = first;
+        e.num_children = 4;
+    }
+
+    /// Bytes used by the arena (elements, state arrays, cluster lists).
+    pub fn memory_bytes(&self) -> usize {
+        self.elems.capacity() * std::mem::size_of::<Element>()
+            + (self.b.capacity() + self.h.capacity() + self.direct.capacity())
+                * std::mem::size_of::<DVec3>()
+            + self.cluster_kids.capacity() * 4
+    }
+
+    /// Bytes one more element costs.
+    pub const BYTES_PER_ELEMENT: usize =
+        std::mem::size_of::<Element>() + 3 * std::mem::size_of::<DVec3>();
+
+    /// True when `a` is an ancestor of `b` (or equal).
+    pub fn is_ancestor(&self, a: u32, b: u32) -> bool {
+        let mut x = b;
+        while x != NONE {
+            if x == a {
+                return true;
+            }
+            x = self.elems[x as usize].parent;
+        }
+        false
+    }
+
+    /// Leaf surface elements below `id` (depth-first, children in order).
+    pub fn leaves_of(&self, id: u32, out: &mut Vec<u32>) {
+        let e = &self.elems[id as usize];
+        if e.num_children == 0 {
+            if e.kind == Kind::Surface {
+                out.push(id);
+            }
+            return;
+        }
+        for c in self.children(id) {
+            self.leaves_of(c, out);
+        }
+    }
+}
+
+/// Iterator over the children of an element.
+pub enum ChildIter<'a> {
+    Slice(std::slice::Iter<'a, u32>),
+    Range(std::ops::Range<u32>),
+}
+
+impl Iterator for ChildIter<'_> {
+    type Item = u32;
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        match self {
+            ChildIter::Slice(s) => s.next().copied(),
+            ChildIter::Range(r) => r.next(),
+        }
+    }
+}

@@ -1,0 +1,472 @@
+//! Form factors: the point-to-disk estimate, the analytic point-to-polygon form factor
+//! (Lambert's contour integral, as in Nusselt's analogy), stratified sampling of triangles and
+//! boxes, and the sampled link kernels of the solver ([`KernelCtx`]).
+//!
+//! All kernels are expressed as form factors from the receiver to the source (dimensionless):
+//! the irradiance a receiver gathers from a source of radiosity `B_j` is `K_ij · B_j`.
+//! Clusters are isotropic (Sillion 1995): a cluster of total area `A` shows the projected area
+//! `A/4` in every direction and has no orientation on the emitting side, so its kernel towards
+//! a point is the disk estimate with `cos θ_j = 1` and area `A/4`.
+
+use super::element::{Elements, Kind};
+use super::visibility::Visibility;
+use crate::cluster::ClusterTree;
+use crate::rng::SplitMix64;
+use glam::{DVec3, Vec3};
+use std::f64::consts::PI;
+
+/// Point-to-disk estimate of the form factor from a differential area to a disk of area
+/// `area` at squared distance `r2`: `A cos θ_r cos θ_s / (π r² + A)` (zero when either cosine
+/// is not positive). Exact for a coaxial, parallel disk.
+#[inline]
+pub fn point_to_disk(r2: f64, cos_r: f64, cos_s: f64, area: f64) -> f64 {
+    if cos_r <= 0.0 || cos_s <= 0.0 {
+        return 0.0;
+    }
+    area * cos_r * cos_s / (PI * r2 + area)
+}
+
+/// Closed-form form factor from a differential area to a parallel disk of radius `radius` at
+/// height `h`, the receiving point offset by `a` from the disk axis (both facing each other).
+pub fn parallel_disk_exact(h: f64, a: f64, radius: f64) -> f64 {
+    let (h2, a2, r2) = (h * h, a * a, radius * radius);
+    let z = h2 + a2 + r2;
+    0.5 * (1.0 - (z - 2.0 * r2) / (z * z - 4.0 * a2 * r2).sqrt())
+}
+
+/// Analytic form factor from a differential area at `x` with unit normal `n` to the planar
+/// convex polygon `poly` (counter-clockwise around `poly_normal`, its emitting side).
+///
+/// The polygon is clipped to the hemisphere above `x`; zero when `x` lies behind the polygon
+/// (one-sided emission) or the polygon is entirely below the receiver's horizon.
+pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) -> f64 {
+    if poly.len() < 3 || (x - poly[0]).dot(poly_normal) <= 0.0 {
+        return 0.0;
+    }
+    // Sutherland–Hodgman against the plane n·(p − x) ≥ 0.
+    let mut clipped = [DVec3::ZERO; 16];
+    let mut m = 0usize;
+    let k = poly.len().min(15);
+    for e in 0..k {
+        let a = poly[e];
+        let b = poly[(e + 1) % k];
+        let da = n.dot(a - x);
+        let db = n.dot(b - x);
+        if da >= 0.0 {
+            clipped[m] = a;
+            m += 1;
+        }
+        if (da >= 0.0) != (db >= 0.0) && m < 16 {
+            let t = da / (da - db);
+            clipped[m] = a + (b - a) * t;
+            m += 1;
+        }
+    }
+    if m < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for e in 0..m {
+        let a = clipped[e] - x;
+        let b = clipped[(e + 1) % m] - x;
+        let c = a.cross(b);
+        let cl = c.length();
+        if cl <= 0.0 {
+            continue;
+        }
+        let theta = cl.atan2(a.dot(b));
+        sum += theta * c.dot(n) / cl;
+    }
+    (sum.abs() / (2.0 * PI)).min(1.0)
+}
+
+/// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).
+#[inline]
+pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
+    let s = u1.sqrt();
+    let b0 = 1.0 - s;
+    let b1 = s * (1.0 - u2);
+    let b2 = s * u2;
+    v[0] * b0 + v[1] * b1 + v[2] * b2
+}
+
+/// `n` stratified (Latin hypercube) jittered 2-D samples in [0, 1)².
+pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
+    out.clear();
+    let mut perm: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        perm.swap(i, j);
+    }
+    let inv = 1.0 / n as f32;
+    for (k, &p) in perm.iter().enumerate() {
+        let u = ((k as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        let v = ((p as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        out.push([u, v]);
+    }
+}
+
+/// Samples and bounds of a link kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KernelEval {
+    /// The kernel with visibility (form factor receiver → source).
+    pub k: f64,
+    /// Unoccluded estimate `F̃` (the `bf` oracle's quantity, per unit source radiosity).
+    pub est: f64,
+    /// Lower and upper kernel bounds (with visibility bounds), for the `error` oracle.
+    pub kmin: f64,
+    pub kmax: f64,
+    /// Shadow rays cast.
+    pub rays: u64,
+}
+
+/// Everything needed to evaluate link kernels.
+pub struct KernelCtx<'a> {
+    pub elems: &'a Elements,
+    pub tree: &'a ClusterTree,
+    pub vis: &'a Visibility<'a>,
+    /// Shadow rays per link.
+    pub n_rays: usize,
+    /// Seed of the run.
+    pub seed: u64,
+}
+
+/// Geometry of one end of a link.
+#[derive(Clone, Copy)]
+enum End {
+    Surface {
+        v: [Vec3; 3],
+        n: Vec3,
+        c: Vec3,
+        area: f64,
+    },
+    Cluster {
+        lo: Vec3,
+        hi: Vec3,
+        c: Vec3,
+        area: f64,
+    },
+}
+
+impl End {
+    fn centroid(&self) -> Vec3 {
+        match *self {
+            End::Surface { c, .. } | End::Cluster { c, .. } => c,
+        }
+    }
+}
+
+/// Signed distances of the box corners to a plane: true when the whole box is behind or on it.
+fn box_behind(lo: Vec3, hi: Vec3, p: Vec3, n: Vec3, tol: f32) -> bool {
+    // The corner farthest along n.
+    let far = Vec3::new(
+        if n.x >= 0.0 { hi.x } else { lo.x },
+        if n.y >= 0.0 { hi.y } else { lo.y },
+        if n.z >= 0.0 { hi.z } else { lo.z },
+    );
+    n.dot(far - p) <= tol
+}
+
+fn tri_behind(v: &[Vec3; 3], p: Vec3, n: Vec3, tol: f32) -> bool {
+    v.iter().all(|&q| n.dot(q - p) <= tol)
+}
+
+impl<'a> KernelCtx<'a> {
+    fn end(&self, id: u32) -> End {
+        let e = &self.elems.elems[id as usize];
+        match e.kind {
+            Kind::Surface => End::Surface {
+                v: e.verts,
+                n: e.normal,
+                c: e.centroid,
+                area: e.area as f64,
+            },
+            Kind::Cluster => {
+                let b = self.tree.nodes[e.tri as usize].bbox;
+                End::Cluster {
+                    lo: b.min,
+                    hi: b.max,
+                    c: e.centroid,
+                    area: e.area as f64,
+                }
+            }
+        }
+    }
+
+    /// True when the kernel between receiver `i` and source `j` is identically zero by
+    /// geometry (one behind the other's plane, coplanar surfaces).
+    pub fn is_zero(&self, i: u32, j: u32) -> bool {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let tol = |a: Vec3, b: Vec3| 1e-6 * (a.abs().max_element() + b.abs().max_element() + 1e-3);
+        match (ri, sj) {
+            (End::Surface { v: vi, n: ni, .. }, End::Surface { v: vj, n: nj, .. }) => {
+                tri_behind(&vj, vi[0], ni, tol(vi[0], vj[0]))
+                    || tri_behind(&vi, vj[0], nj, tol(vi[0], vj[0]))
+            }
+            (End::Surface { v, n, .. }, End::Cluster { lo, hi, .. }) => {
+                box_behind(lo, hi, v[0], n, tol(v[0], hi))
+            }
+            (End::Cluster { lo, hi, .. }, End::Surface { v, n, .. }) => {
+                box_behind(lo, hi, v[0], n, tol(v[0], hi))
+            }
+            (End::Cluster { .. }, End::Cluster { .. }) => false,
+        }
+    }
+
+    /// Unoccluded kernel at receiver point `x` (normal `n`, `None` for a cluster receiver,
+    /// which faces the source).
+    fn point_kernel(x: Vec3, n: Option<Vec3>, src: &End) -> f64 {
+        let xd = x.as_dvec3();
+        match *src {
+            End::Surface { v, n: nj, c, area } => {
+                let nn = match n {
+                    Some(n) => n.as_dvec3(),
+                    None => {
+                        let d = c.as_dvec3() - xd;
+                        let l = d.length();
+                        if l <= 0.0 {
+                            return 0.0;
+                        }
+                        d / l
+                    }
+                };
+                let poly = v.map(|p| p.as_dvec3());
+                let f = point_to_polygon(xd, nn, &poly, nj.as_dvec3());
+                // A receiver facing the source cannot see more than a disk of the same area
+                // would give at this distance: guards the cluster-centre case.
+                if n.is_none() {
+                    let r2 = (c.as_dvec3() - xd).length_squared();
+                    let cs = nj.as_dvec3().dot((xd - c.as_dvec3()).normalize_or_zero());
+                    f.max(point_to_disk(r2, 1.0, cs, area)).min(1.0)
+                } else {
+                    f
+                }
+            }
+            End::Cluster { c, area, .. } => {
+                let d = c.as_dvec3() - xd;
+                let r2 = d.length_squared();
+                let cos_r = match n {
+                    Some(n) => {
+                        if r2 <= 0.0 {
+                            return 0.0;
+                        }
+                        n.as_dvec3().dot(d) / r2.sqrt()
+                    }
+                    None => 1.0,
+                };
+                point_to_disk(r2, cos_r, 1.0, area * 0.25)
+            }
+        }
+    }
+
+    /// Cheap unoccluded estimate `F̃` (no rays): the maximum of the point kernel at the
+    /// receiver's centroid and (slightly inset) corners.
+    pub fn estimate(&self, i: u32, j: u32) -> f64 {
+        let (ri, sj) = (self.end(i), self.end(j));
+        match ri {
+            End::Surface { v, n, c, .. } => {
+                let mut f = Self::point_kernel(c, Some(n), &sj);
+                for p in v {
+                    f = f.max(Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj));
+                }
+                f
+            }
+            End::Cluster { c, .. } => Self::point_kernel(c, None, &sj),
+        }
+    }
+
+    /// Full kernel evaluation of the link (receiver `i`, source `j`) with `n_rays` stratified
+    /// jittered shadow rays. `bounds`: also sample the kernel bounds for the `error` oracle.
+    pub fn evaluate(&self, i: u32, j: u32, bounds: bool) -> KernelEval {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let n = self.n_rays.max(1);
+        let mut rng = SplitMix64::for_item(
+            self.seed ^ 0x5EED_0F_11_4C,
+            ((i as u64) << 32) | j as u64,
+        );
+        let mut su = Vec::with_capacity(n);
+        let mut sv = Vec::with_capacity(n);
+        stratified_2d(n, &mut rng, &mut su);
+        stratified_2d(n, &mut rng, &mut sv);
+        let (mut jit_r, mut jit_s) = ([0f32; 3], [0f32; 3]);
+        let est = self.estimate(i, j);
+        let mut sum = 0.0;
+        let mut rays = 0u64;
+        let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
+        let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
+        let centre_k = match ri {
+            End::Cluster { c, .. } => Self::point_kernel(c, None, &sj),
+            End::Surface { .. } => 0.0,
+        };
+        for s in 0..n {
+            for k in 0..3 {
+                jit_r[k] = rng.next_f32();
+                jit_s[k] = rng.next_f32();
+            }
+            // Receiver sample point and its unoccluded kernel.
+            let (x, fx) = match ri {
+                End::Surface { v, n: nr, .. } => {
+                    let x = sample_triangle(&v, su[s][0], su[s][1]);
+                    (x, Self::point_kernel(x, Some(nr), &sj))
+                }
+                End::Cluster { lo, hi, .. } => {
+                    let t = Vec3::new(su[s][0], su[s][1], jit_r[0]);
+                    let x = lo + (hi - lo) * t;
+                    let f = if bounds {
+                        Self::point_kernel(x, None, &sj)
+                    } else {
+                        centre_k
+                    };
+                    (x, f)
+                }
+            };
+            // Source sample point.
+            let y = match sj {
+                End::Surface { v, .. } => sample_triangle(&v, sv[s][0], sv[s][1]),
+                End::Cluster { lo, hi, .. } => {
+                    lo + (hi - lo) * Vec3::new(sv[s][0], sv[s][1], jit_s[0])
+                }
+            };
+            let vis = if fx > 0.0 || bounds {
+                rays += 1;
+                self.segment(x, &ri, y, &sj)
+            } else {
+                0.0
+            };
+            vmin = vmin.min(vis);
+            vmax = vmax.max(vis);
+            fmin = fmin.min(fx);
+            fmax = fmax.max(fx);
+            sum += match ri {
+                End::Surface { .. } => fx * vis,
+                End::Cluster { .. } => centre_k * vis,
+            };
+        }
+        if bounds {
+            // Corner points of a surface receiver widen the kernel range (no rays).
+            if let End::Surface { v, n: nr, c, .. } = ri {
+                for p in v {
+                    let f = Self::point_kernel(p + (c - p) * 0.02, Some(nr), &sj);
+                    fmin = fmin.min(f);
+                    fmax = fmax.max(f);
+                }
+            }
+        }
+        let k = sum / n as f64;
+        if !fmin.is_finite() {
+            fmin = 0.0;
+        }
+        KernelEval {
+            k,
+            est,
+            kmin: fmin * vmin,
+            kmax: fmax.max(est) * vmax,
+            rays,
+        }
+    }
+
+    /// Visibility of the segment x → y; the parts inside cluster ends' boxes are skipped
+    /// (a cluster's own contents do not shadow its exchanges).
+    fn segment(&self, x: Vec3, rx: &End, y: Vec3, sy: &End) -> f64 {
+        let d = y - x;
+        let mut t0 = 1e-4f32;
+        let mut t1 = 1.0 - 1e-4f32;
+        if let End::Cluster { lo, hi, .. } = *rx {
+            t0 = t0.max(exit_param(x, d, lo, hi));
+        }
+        if let End::Cluster { lo, hi, .. } = *sy {
+            t1 = t1.min(1.0 - exit_param(y, -d, lo, hi));
+        }
+        if t0 >= t1 {
+            return 1.0;
+        }
+        self.vis.transmittance(x, d, t0, t1, rx.centroid(), sy.centroid())
+    }
+}
+
+/// Parameter where the ray `o + t d` (o inside the box) leaves the box `[lo, hi]`.
+fn exit_param(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    let mut t = f32::INFINITY;
+    for a in 0..3 {
+        let da = d[a];
+        if da > 0.0 {
+            t = t.min((hi[a] - o[a]) / da);
+        } else if da < 0.0 {
+            t = t.min((lo[a] - o[a]) / da);
+        }
+    }
+    t.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(z: f64, up: bool) -> Vec<DVec3> {
+        let mut p = vec![
+            DVec3::new(0.0, 0.0, z),
+            DVec3::new(1.0, 0.0, z),
+            DVec3::new(1.0, 1.0, z),
+            DVec3::new(0.0, 1.0, z),
+        ];
+        if !up {
+            p.reverse();
+        }
+        p
+    }
+
+    #[test]
+    fn disk_estimate_matches_coaxial_closed_form() {
+        for (h, r) in [(1.0, 0.5), (0.3, 1.0), (5.0, 0.1)] {
+            let exact = parallel_disk_exact(h, 0.0, r);
+            let est = point_to_disk(h * h, 1.0, 1.0, PI * r * r);
+            assert!((exact - est).abs() < 1e-12, "{exact} {est}");
+        }
+        // Off axis, far away the estimate with the true cosines converges to the closed form.
+        let (h, a, r) = (10.0, 3.0, 0.2);
+        let exact = parallel_disk_exact(h, a, r);
+        let d2 = h * h + a * a;
+        let c = h / d2.sqrt();
+        let est = point_to_disk(d2, c, c, PI * r * r);
+        assert!(((exact - est) / exact).abs() < 1e-3, "{exact} {est}");
+    }
+
+    #[test]
+    fn polygon_form_factor_analytic_values() {
+        // Point under the corner of a unit square at height 1: F = 0.13853 (tables).
+        let sq = square(1.0, false);
+        let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &sq, -DVec3::Z);
+        let a = 1.0 / 2f64.sqrt();
+        let exact = (1.0 / (2.0 * PI)) * 2.0 * (a * (1.0f64 / 2f64.sqrt()).atan());
+        assert!((f - exact).abs() < 1e-9, "{f} {exact}");
+        assert!((f - 0.138_53).abs() < 1e-4);
+        // Behind the emitting side: zero; a huge polygon fills the hemisphere: 1.
+        assert_eq!(point_to_polygon(DVec3::ZERO, DVec3::Z, &square(1.0, true), DVec3::Z), 0.0);
+        let big = [
+            DVec3::new(-1e4, -1e4, 1.0),
+            DVec3::new(-1e4, 1e4, 1.0),
+            DVec3::new(1e4, 1e4, 1.0),
+            DVec3::new(1e4, -1e4, 1.0),
+        ];
+        let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &big, -DVec3::Z);
+        assert!((f - 1.0).abs() < 1e-3, "{f}");
+        // A tilted receiver sees part of the polygon clipped by its horizon.
+        let f = point_to_polygon(DVec3::ZERO, DVec3::X, &big, -DVec3::Z);
+        assert!((f - 0.5).abs() < 1e-3, "{f}");
+    }
+
+    #[test]
+    fn stratified_samples_cover_strata() {
+        let mut rng = SplitMix64::new(3);
+        let mut s = Vec::new();
+        stratified_2d(8, &mut rng, &mut s);
+        let mut cu = [0; 8];
+        let mut cv = [0; 8];
+        for p in &s {
+            cu[(p[0] * 8.0) as usize] += 1;
+            cv[(p[1] * 8.0) as usize] += 1;
+        }
+        assert_eq!(cu, [1; 8]);
+        assert_eq!(cv, [1; 8]);
+    }
+}

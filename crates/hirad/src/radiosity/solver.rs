@@ -1,0 +1,790 @@
+//! The hierarchical radiosity loop: refine links with the oracle, gather, push-pull, until
+//! the total power converges (`spec/radiosity.md`, "The solver").
+//!
+//! Determinism: refinement works on a flat list of links in passes; each pass decides every
+//! link in parallel (rayon `map` + `collect` keeps the order), then creates the children that
+//! the decisions need sequentially in ascending element order, then replaces split links by
+//! their children links in list order. Kernels use seeds derived from the link's element ids.
+//! Gather runs per receiver in parallel, push-pull per root surface in parallel, and every
+//! total is summed sequentially in id order: results do not depend on the thread count.
+//!
+//! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
+//! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
+//! the sky (uniform radiance `L_sky` over the directions above the horizon of the up axis) is
+//! gathered as ambient occlusion: `π·L_sky` times the fraction of `sky_rays` cosine-weighted
+//! directions that are above the horizon and escape. Both are computed once per surface element
+//! when it is created and added to the irradiance of the leaves in push-pull.
+
+use super::config::{Oracle, Reception, SolverConfig};
+use super::element::{Elements, Kind};
+use super::formfactor::{sample_triangle, KernelCtx};
+use super::link::{Link, LinkKind, LinkSet};
+use super::oracle::{self, Action};
+use super::stats::{self, IterStat, SolveStats};
+use super::visibility::Visibility;
+use crate::cluster::{ClusterTree, NONE};
+use crate::progress::Progress;
+use crate::rng::SplitMix64;
+use crate::scene::Scene;
+use crate::{Error, Result};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    pub elements: Elements,
+    pub links: LinkSet,
+    /// Area-averaged incident irradiance per root surface element (index `id - first_root`),
+    /// including sun and sky.
+    pub root_irradiance: Vec<DVec3>,
+    pub stats: SolveStats,
+}
+
+impl Solution {
+    /// Radiosity of input triangle `tri` (front face, or back face when `back` and two-sided).
+    pub fn triangle_radiosity(&self, tri: u32, back: bool) -> DVec3 {
+        self.elements.b[self.root_id(tri, back) as usize]
+    }
+
+    /// Area-averaged incident irradiance of input triangle `tri`.
+    pub fn triangle_irradiance(&self, tri: u32, back: bool) -> DVec3 {
+        self.root_irradiance[(self.root_id(tri, back) - self.elements.first_root) as usize]
+    }
+
+    fn root_id(&self, tri: u32, back: bool) -> u32 {
+        let e = &self.elements;
+        e.first_root + tri + if back && e.two_sided { e.num_tris } else { 0 }
+    }
+
+    /// Leaf surface elements, in depth-first order of the roots.
+    pub fn leaves(&self) -> Vec<u32> {
+        let mut out = Vec::new();
+        for r in self.elements.roots() {
+            self.elements.leaves_of(r, &mut out);
+        }
+        out
+    }
+}
+
+/// Solve `scene` with the cluster hierarchy `tree`.
+pub fn solve(
+    scene: &Scene,
+    tree: &ClusterTree,
+    cfg: &SolverConfig,
+    progress: &dyn Progress,
+) -> Result<Solution> {
+    solve_cancellable(scene, tree, cfg, progress, &AtomicBool::new(false))
+}
+
+/// [`solve`] that stops with [`Error::Interrupted`] when `cancel` becomes true.
+pub fn solve_cancellable(
+    scene: &Scene,
+    tree: &ClusterTree,
+    cfg: &SolverConfig,
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+) -> Result<Solution> {
+    cfg.validate()?;
+    if tree.surface_node.len() != scene.num_triangles() {
+        return Err(Error::Config(format!(
+            "cluster tree has {} surfaces, scene has {}",
+            tree.surface_node.len(),
+            scene.num_triangles()
+        )));
+    }
+    let t_start = Instant::now();
+    let vis = Visibility::new(scene, tree, cfg.visibility, cfg.vol_ratio)?;
+    let mut s = Solver::new(scene, tree, cfg, &vis);
+    s.stats.time.setup = t_start.elapsed().as_secs_f64();
+    s.run(progress, cancel, t_start)?;
+    s.finish(t_start)
+}
+
+/// Gather output of one receiver.
+#[derive(Clone, Debug, Default)]
+struct Gathered {
+    recv: u32,
+    h: DVec3,
+    /// Irradiance (channel sum) from cluster sources (surface receivers).
+    h_cluster: f64,
+    /// Cluster receivers: (unit direction to the source, irradiance) per link.
+    entries: Vec<(Vec3, DVec3)>,
+}
+
+/// Result of push-pull below one root surface.
+#[derive(Clone, Debug, Default)]
+struct RootResult {
+    updates: Vec<(u32, DVec3)>,
+    incident: DVec3,
+    absorbed: f64,
+    gathered: f64,
+    gathered_cluster: f64,
+    direct: f64,
+}
+
+struct Solver<'a> {
+    scene: &'a Scene,
+    tree: &'a ClusterTree,
+    cfg: &'a SolverConfig,
+    vis: &'a Visibility<'a>,
+    el: Elements,
+    links: Vec<Link>,
+    set: LinkSet,
+    eps: f64,
+    min_area: f64,
+    budget_hit: bool,
+    peak: u64,
+    rays: u64,
+    /// Per cluster: range into `entries`.
+    cl_ranges: Vec<(u32, u32)>,
+    entries: Vec<(Vec3, DVec3)>,
+    /// Per element: irradiance (channel sum) gathered from cluster sources.
+    h_cluster: Vec<f64>,
+    root_irr: Vec<DVec3>,
+    has_sun_sky: bool,
+    stats: SolveStats,
+}
+
+impl<'a> Solver<'a> {
+    fn new(
+        scene: &'a Scene,
+        tree: &'a ClusterTree,
+        cfg: &'a SolverConfig,
+        vis: &'a Visibility<'a>,
+    ) -> Self {
+        let mut el = Elements::build(scene, tree, cfg.two_sided);
+        let total_area = scene.total_area() * if cfg.two_sided { 2.0 } else { 1.0 };
+        let footprint = {
+            let e = scene.bbox.extent();
+            let up = scene.up.vector();
+            let ex = e.as_dvec3();
+            // Area of the box's projection along the up axis.
+            if up == Vec3::Z {
+                ex.x * ex.y
+            } else {
+                ex.x * ex.z
+            }
+        };
+        let sun_power = scene
+            .sun
+            .map(|s| s.irradiance.as_dvec3().element_sum() * footprint)
+            .unwrap_or(0.0);
+        let sky_power = scene
+            .sky
+            .map(|l| std::f64::consts::PI * l.as_dvec3().element_sum() * footprint)
+            .unwrap_or(0.0);
+        let b_ref =
+            (scene.emitted_power().element_sum() + sun_power + sky_power) / total_area.max(1e-30);
+        let eps = cfg.eps.unwrap_or(cfg.eps_rel * b_ref).max(1e-30);
+        let min_area = cfg.min_area.unwrap_or(cfg.min_area_rel * total_area);
+        let has_sun_sky = scene.sun.is_some() || scene.sky.is_some();
+        // Initial radiosity: emission (plus reflected direct sun/sky).
+        for id in el.roots() {
+            el.b[id as usize] = el.elems[id as usize].emission.as_dvec3();
+        }
+        let nc = el.num_clusters as usize;
+        let stats = SolveStats {
+            scene: scene.name.clone(),
+            triangles: scene.num_triangles(),
+            strategy: tree.strategy.name().to_string(),
+            cluster_nodes: tree.nodes.len(),
+            refine: cfg.refine.name().to_string(),
+            eps,
+            min_area,
+            visibility: cfg.visibility.name().to_string(),
+            shadow_rays: cfg.shadow_rays,
+            two_sided: cfg.two_sided,
+            cluster_receive: match cfg.cluster_receive {
+                Reception::Oriented => "oriented".into(),
+                Reception::Isotropic => "isotropic".into(),
+            },
+            threads: rayon::current_num_threads(),
+            ..Default::default()
+        };
+        let mut s = Solver {
+            scene,
+            tree,
+            cfg,
+            vis,
+            h_cluster: vec![0.0; el.len()],
+            el,
+            links: Vec::new(),
+            set: LinkSet::default(),
+            eps,
+            min_area,
+            budget_hit: false,
+            peak: 0,
+            rays: 0,
+            cl_ranges: vec![(0, 0); nc],
+            entries: Vec::new(),
+            root_irr: Vec::new(),
+            has_sun_sky,
+            stats,
+        };
+        if has_sun_sky {
+            let roots = s.el.roots();
+            s.compute_direct(roots.start, roots.end);
+            for id in s.el.roots() {
+                let e = &s.el.elems[id as usize];
+                s.el.b[id as usize] =
+                    e.emission.as_dvec3() + e.rho.as_dvec3() * s.el.direct[id as usize];
+            }
+        }
+        s.pull_clusters();
+        s
+    }
+
+    fn run(&mut self, progress: &dyn Progress, cancel: &AtomicBool, t0: Instant) -> Result<()> {
+        let p0 = self.total_power();
+        if p0 <= 0.0 {
+            self.stats.no_light = true;
+            let msg = format!(
+                "scene '{}' has no light (no emitter, sun or sky): the solution is zero",
+                self.scene.name
+            );
+            tracing::warn!("{msg}");
+            self.stats.warnings.push(msg);
+            self.stats.converged = true;
+            self.set = LinkSet::default();
+            self.push_pull();
+            return Ok(());
+        }
+        progress.start("solve", self.cfg.max_iters as u64);
+        let mut prev = p0;
+        for it in 1..=self.cfg.max_iters {
+            if cancel.load(Ordering::Relaxed) {
+                progress.finish();
+                return Err(Error::Interrupted);
+            }
+            let t = Instant::now();
+            self.refine(it == 1, cancel)?;
+            self.stats.time.refine += t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            self.gather();
+            self.stats.time.gather += t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            self.push_pull();
+            self.stats.time.push_pull += t.elapsed().as_secs_f64();
+            let p = self.total_power();
+            let rel = (p - prev).abs() / p.abs().max(1e-300);
+            prev = p;
+            self.stats.history.push(IterStat {
+                iter: it,
+                elements: self.el.len(),
+                links: self.set.len(),
+                power: p,
+                rel_change: rel,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+            self.stats.iterations = it;
+            progress.inc(1);
+            progress.message(&format!(
+                "iter {it}: {} links, {} elements, Δ {:.1e}",
+                self.set.len(),
+                self.el.len(),
+                rel
+            ));
+            tracing::debug!(
+                "iteration {it}: links {} elements {} power {p:.6e} change {rel:.2e}",
+                self.set.len(),
+                self.el.len()
+            );
+            if it > 1 && rel < self.cfg.tol_converge {
+                self.stats.converged = true;
+                break;
+            }
+        }
+        progress.finish();
+        if !self.stats.converged {
+            let msg = format!(
+                "not converged after {} iterations (last relative change {:.2e} > {:.1e})",
+                self.stats.iterations,
+                self.stats.history.last().map(|h| h.rel_change).unwrap_or(0.0),
+                self.cfg.tol_converge
+            );
+            tracing::warn!("{msg}");
+            self.stats.warnings.push(msg);
+        }
+        Ok(())
+    }
+
+    fn memory_now(&self, extra_links: usize) -> u64 {
+        (self.el.memory_bytes()
+            + self.h_cluster.capacity() * 8
+            + self.set.memory_bytes()
+            + (self.links.capacity() + extra_links) * std::mem::size_of::<Link>()
+            + self.entries.capacity() * std::mem::size_of::<(Vec3, DVec3)>()) as u64
+    }
+
+    fn note_peak(&mut self) {
+        let m = self.memory_now(0);
+        self.peak = self.peak.max(m);
+    }
+
+    /// One refinement sweep over every link (the root self-link on the first iteration).
+    fn refine(&mut self, first: bool, cancel: &AtomicBool) -> Result<()> {
+        let mut frontier: Vec<Link> = if first {
+            vec![Link::new(0, 0)]
+        } else {
+            std::mem::take(&mut self.set).links
+        };
+        let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
+        let oracle_kind = self.cfg.refine;
+        while !frontier.is_empty() {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            let allow = !self.budget_hit;
+            let decided: Vec<(Action, Link, u64)> = {
+                let ctx = self.ctx();
+                let this = &*self;
+                frontier
+                    .par_iter()
+                    .map(|l| this.decide(&ctx, l, allow, oracle_kind))
+                    .collect()
+            };
+            // Growth of this pass.
+            let mut new_links = 0usize;
+            let mut to_split: Vec<u32> = Vec::new();
+            for (a, l, _) in &decided {
+                let nk = |id: u32| -> usize {
+                    let e = &self.el.elems[id as usize];
+                    if e.kind == Kind::Surface {
+                        4
+                    } else {
+                        e.num_children as usize
+                    }
+                };
+                match a {
+                    Action::SplitRecv => {
+                        new_links += nk(l.recv);
+                        to_split.push(l.recv);
+                    }
+                    Action::SplitSrc => {
+                        new_links += nk(l.src);
+                        to_split.push(l.src);
+                    }
+                    Action::SplitBoth => new_links += nk(l.recv) * nk(l.recv),
+                    _ => {}
+                }
+            }
+            to_split.retain(|&id| {
+                let e = &self.el.elems[id as usize];
+                e.kind == Kind::Surface && e.num_children == 0
+            });
+            to_split.sort_unstable();
+            to_split.dedup();
+            let projected = self.memory_now(done.len() + frontier.len() + new_links)
+                + (to_split.len() * 4 * (Elements::BYTES_PER_ELEMENT + 8)) as u64;
+            for (_, _, r) in &decided {
+                self.rays += r;
+            }
+            if let Some(budget) = self.cfg.max_memory {
+                if new_links > 0 && projected > budget {
+                    self.budget_hit = true;
+                    let msg = format!(
+                        "memory budget {:.3} GB reached ({} links, {} elements): refinement \
+                         stopped, the solution is coarser than eps = {:.3e} asks for",
+                        budget as f64 / 1e9,
+                        done.len() + frontier.len(),
+                        self.el.len(),
+                        self.eps
+                    );
+                    tracing::warn!("{msg}");
+                    self.stats.warnings.push(msg);
+                    // Re-decide this pass without refinement: every link is kept.
+                    continue;
+                }
+            }
+            for &id in &to_split {
+                self.el.subdivide(id);
+            }
+            if !to_split.is_empty() {
+                let n_before = self.h_cluster.len();
+                self.h_cluster.resize(self.el.len(), 0.0);
+                if self.has_sun_sky {
+                    self.compute_direct(n_before as u32, self.el.len() as u32);
+                }
+            }
+            let mut next = Vec::with_capacity(new_links);
+            for (a, l, _) in decided {
+                match a {
+                    Action::Keep => done.push(l),
+                    Action::Drop => {}
+                    Action::SplitRecv => {
+                        for c in self.el.children(l.recv) {
+                            next.push(Link::new(c, l.src));
+                        }
+                    }
+                    Action::SplitSrc => {
+                        for c in self.el.children(l.src) {
+                            next.push(Link::new(l.recv, c));
+                        }
+                    }
+                    Action::SplitBoth => {
+                        let kids: Vec<u32> = self.el.children(l.recv).collect();
+                        for &a in &kids {
+                            for &b in &kids {
+                                next.push(Link::new(a, b));
+                            }
+                        }
+                    }
+                }
+            }
+            frontier = next;
+            self.links = done;
+            self.note_peak();
+            done = std::mem::take(&mut self.links);
+        }
+        self.set = LinkSet::from_links(done);
+        self.note_peak();
+        Ok(())
+    }
+
+    fn ctx(&self) -> KernelCtx<'_> {
+        KernelCtx {
+            elems: &self.el,
+            tree: self.tree,
+            vis: self.vis,
+            n_rays: self.cfg.shadow_rays as usize,
+            seed: self.cfg.seed,
+        }
+    }
+
+    /// Decide what to do with one link; kept links come back evaluated.
+    fn decide(&self, ctx: &KernelCtx, l: &Link, allow: bool, ok: Oracle) -> (Action, Link, u64) {
+        let (ri, sj) = (l.recv, l.src);
+        let r = &self.el.elems[ri as usize];
+        let s = &self.el.elems[sj as usize];
+        if ri == sj {
+            return if r.kind == Kind::Cluster && r.num_children > 0 {
+                (Action::SplitBoth, *l, 0)
+            } else {
+                (Action::Drop, *l, 0)
+            };
+        }
+        let mut link = *l;
+        let mut rays = 0;
+        let mut eval = None;
+        if !link.evaluated() {
+            if ctx.is_zero(ri, sj) {
+                return (Action::Drop, link, 0);
+            }
+            match ok {
+                Oracle::Bf => link.est = ctx.estimate(ri, sj) as f32,
+                Oracle::Error => {
+                    let ev = ctx.evaluate(ri, sj, true);
+                    rays += ev.rays;
+                    link.est = (ev.kmax - ev.kmin).max(0.0) as f32;
+                    eval = Some(ev);
+                }
+            }
+        }
+        if allow
+            && oracle::wants_refine(
+                ok,
+                self.eps,
+                link.est as f64,
+                self.el.b[sj as usize],
+                r.rho.as_dvec3(),
+            )
+        {
+            if let Some(a) = oracle::choose_split(r, s, self.min_area) {
+                return (a, link, rays);
+            }
+        }
+        if !link.evaluated() {
+            let ev = match eval {
+                Some(ev) => ev,
+                None => {
+                    let ev = ctx.evaluate(ri, sj, false);
+                    rays += ev.rays;
+                    ev
+                }
+            };
+            link.k = ev.k as f32;
+        }
+        (Action::Keep, link, rays)
+    }
+
+    /// Gather over every link, per receiver.
+    fn gather(&mut self) {
+        let el = &self.el;
+        let links = &self.set.links;
+        let res: Vec<Gathered> = self
+            .set
+            .groups
+            .par_iter()
+            .map(|&(r, a, b)| {
+                let re = &el.elems[r as usize];
+                let mut g = Gathered {
+                    recv: r,
+                    ..Default::default()
+                };
+                for l in &links[a as usize..b as usize] {
+                    let bs = el.b[l.src as usize];
+                    let contrib = bs * l.k as f64;
+                    let se = &el.elems[l.src as usize];
+                    if re.kind == Kind::Cluster {
+                        let d = (se.centroid - re.centroid).normalize_or_zero();
+                        g.entries.push((d, contrib));
+                    } else {
+                        g.h += contrib;
+                        if se.kind == Kind::Cluster {
+                            g.h_cluster += contrib.element_sum();
+                        }
+                    }
+                }
+                g
+            })
+            .collect();
+        for h in self.el.h.iter_mut() {
+            *h = DVec3::ZERO;
+        }
+        for v in self.h_cluster.iter_mut() {
+            *v = 0.0;
+        }
+        self.entries.clear();
+        for r in self.cl_ranges.iter_mut() {
+            *r = (0, 0);
+        }
+        for g in res {
+            let id = g.recv as usize;
+            if self.el.elems[id].kind == Kind::Cluster {
+                let s = self.entries.len() as u32;
+                self.entries.extend_from_slice(&g.entries);
+                self.cl_ranges[id] = (s, self.entries.len() as u32);
+            } else {
+                self.el.h[id] = g.h;
+                self.h_cluster[id] = g.h_cluster;
+            }
+        }
+        self.note_peak();
+    }
+
+    /// Push irradiance down to the leaves (through clusters, then surface quadtrees), compute
+    /// leaf radiosity, pull area averages up; accumulate the power balance.
+    fn push_pull(&mut self) {
+        let nc = self.el.num_clusters;
+        let roots = self.el.roots();
+        let el = &self.el;
+        let tree = self.tree;
+        let entries = &self.entries;
+        let cl_ranges = &self.cl_ranges;
+        let h_cluster = &self.h_cluster;
+        let reception = self.cfg.cluster_receive;
+        let results: Vec<RootResult> = roots
+            .clone()
+            .into_par_iter()
+            .map(|r| {
+                let e = &el.elems[r as usize];
+                let n = e.normal;
+                let mut hc = DVec3::ZERO;
+                let mut node = tree.surface_node[e.tri as usize];
+                while node != NONE {
+                    if (node as usize) < cl_ranges.len() {
+                        let (a, b) = cl_ranges[node as usize];
+                        for &(d, h) in &entries[a as usize..b as usize] {
+                            let w = match reception {
+                                Reception::Oriented => n.dot(d).max(0.0) as f64,
+                                Reception::Isotropic => 0.25,
+                            };
+                            hc += h * w;
+                        }
+                    }
+                    node = tree.nodes[node as usize].parent;
+                }
+                let mut out = RootResult::default();
+                let area = e.area as f64;
+                out.gathered_cluster = area * hc.element_sum();
+                let b = push_rec(el, h_cluster, r, hc, &mut out);
+                out.updates.push((r, b));
+                out.incident /= area;
+                out
+            })
+            .collect();
+        let mut pw = super::stats::PowerStats::default();
+        self.root_irr = Vec::with_capacity(results.len());
+        for res in results {
+            for (id, b) in res.updates {
+                self.el.b[id as usize] = b;
+            }
+            self.root_irr.push(res.incident);
+            pw.absorbed += res.absorbed;
+            pw.gathered += res.gathered;
+            pw.gathered_cluster += res.gathered_cluster;
+            pw.emitted += res.direct;
+        }
+        for r in roots {
+            let e = &self.el.elems[r as usize];
+            pw.emitted += e.emission.as_dvec3().element_sum() * e.area as f64;
+        }
+        let _ = nc;
+        self.pull_clusters();
+        pw.radiosity = self.total_power();
+        pw.escaping = pw.radiosity - pw.gathered;
+        self.stats.power = pw;
+    }
+
+    /// Cluster radiosity = area average of the children, bottom-up.
+    fn pull_clusters(&mut self) {
+        let nc = self.el.num_clusters as usize;
+        for id in (0..nc).rev() {
+            let e = &self.el.elems[id];
+            let mut acc = DVec3::ZERO;
+            for k in self.el.children(id as u32) {
+                acc += self.el.b[k as usize] * self.el.elems[k as usize].area as f64;
+            }
+            let a = e.area as f64;
+            self.el.b[id] = if a > 0.0 { acc / a } else { DVec3::ZERO };
+        }
+    }
+
+    /// Σ A·B over root surfaces (channel sum), summed in id order.
+    fn total_power(&self) -> f64 {
+        self.el
+            .roots()
+            .map(|r| self.el.b[r as usize].element_sum() * self.el.elems[r as usize].area as f64)
+            .sum()
+    }
+
+    /// Direct sun and sky irradiance of surface elements `lo..hi`.
+    fn compute_direct(&mut self, lo: u32, hi: u32) {
+        let scene = self.scene;
+        let vis = self.vis;
+        let el = &self.el;
+        let n_sun = self.cfg.shadow_rays as usize;
+        let n_sky = self.cfg.sky_rays as usize;
+        let seed = self.cfg.seed ^ 0x5u64.wrapping_mul(0x9E37_79B9);
+        let up = scene.up.vector();
+        let tmin = 1e-5 * scene.bbox.extent().length().max(1e-12);
+        let vals: Vec<(DVec3, u64)> = (lo..hi)
+            .into_par_iter()
+            .map(|id| {
+                let e = &el.elems[id as usize];
+                if e.kind != Kind::Surface {
+                    return (DVec3::ZERO, 0);
+                }
+                let mut rng = SplitMix64::for_item(seed, id as u64);
+                let mut h = DVec3::ZERO;
+                let mut rays = 0u64;
+                let n = e.normal;
+                let offset = n * tmin;
+                if let Some(sun) = scene.sun {
+                    let c = n.dot(sun.direction);
+                    if c > 0.0 {
+                        let mut pts = Vec::new();
+                        super::formfactor::stratified_2d(n_sun, &mut rng, &mut pts);
+                        let mut open = 0;
+                        for p in &pts {
+                            let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
+                            rays += 1;
+                            if !vis.blocked_to_infinity(x, sun.direction, tmin) {
+                                open += 1;
+                            }
+                        }
+                        h += sun.irradiance.as_dvec3() * (c as f64 * open as f64 / n_sun as f64);
+                    }
+                }
+                if let Some(sky) = scene.sky {
+                    let mut dirs = Vec::new();
+                    super::formfactor::stratified_2d(n_sky, &mut rng, &mut dirs);
+                    let mut pts = Vec::new();
+                    super::formfactor::stratified_2d(n_sky, &mut rng, &mut pts);
+                    let (t, b) = n.any_orthonormal_pair();
+                    let mut open = 0;
+                    for (d, p) in dirs.iter().zip(&pts) {
+                        // Cosine-weighted direction about n.
+                        let r = d[0].sqrt();
+                        let phi = std::f32::consts::TAU * d[1];
+                        let w = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - d[0]).max(0.0).sqrt())
+                            .normalize_or_zero();
+                        if w.dot(up) <= 0.0 {
+                            continue;
+                        }
+                        let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
+                        rays += 1;
+                        if !vis.blocked_to_infinity(x, w, tmin) {
+                            open += 1;
+                        }
+                    }
+                    h += sky.as_dvec3() * (std::f64::consts::PI * open as f64 / n_sky as f64);
+                }
+                (h, rays)
+            })
+            .collect();
+        for (k, (h, r)) in vals.into_iter().enumerate() {
+            self.el.direct[lo as usize + k] = h;
+            self.rays += r;
+        }
+    }
+
+    fn finish(mut self, t0: Instant) -> Result<Solution> {
+        let st = &mut self.stats;
+        st.elements = self.el.len();
+        st.cluster_elements = self.el.num_clusters as usize;
+        st.surface_elements = st.elements - st.cluster_elements;
+        st.leaf_elements = self
+            .el
+            .elems
+            .iter()
+            .filter(|e| e.kind == Kind::Surface && e.num_children == 0)
+            .count();
+        st.links = self.set.len();
+        for l in &self.set.links {
+            match LinkKind::of(&self.el, l) {
+                LinkKind::Ss => st.links_ss += 1,
+                LinkKind::Cs => st.links_cs += 1,
+                LinkKind::Cc => st.links_cc += 1,
+            }
+        }
+        st.cluster_energy_percent = if st.power.gathered > 0.0 {
+            100.0 * st.power.gathered_cluster / st.power.gathered
+        } else {
+            0.0
+        };
+        st.rays = self.rays;
+        st.memory.peak_counted_bytes = self.peak;
+        st.memory.element_bytes = (self.el.memory_bytes() + self.h_cluster.capacity() * 8) as u64;
+        st.memory.link_bytes = self.set.memory_bytes() as u64;
+        st.memory.vm_hwm_bytes = stats::vm_hwm_bytes();
+        st.memory.budget_bytes = self.cfg.max_memory;
+        st.memory.budget_hit = self.budget_hit;
+        st.time.total = t0.elapsed().as_secs_f64();
+        Ok(Solution {
+            elements: self.el,
+            links: self.set,
+            root_irradiance: self.root_irr,
+            stats: self.stats,
+        })
+    }
+}
+
+/// Push-pull below surface element `id` with irradiance `down` from above; returns its B.
+fn push_rec(el: &Elements, h_cluster: &[f64], id: u32, down: DVec3, out: &mut RootResult) -> DVec3 {
+    let e = &el.elems[id as usize];
+    let area = e.area as f64;
+    let own = el.h[id as usize];
+    out.gathered += area * own.element_sum();
+    out.gathered_cluster += area * h_cluster[id as usize];
+    let h = down + own;
+    if e.num_children == 0 {
+        let d = el.direct[id as usize];
+        let inc = h + d;
+        let rho = e.rho.as_dvec3();
+        out.incident += inc * area;
+        out.absorbed += area * ((DVec3::ONE - rho) * inc).element_sum();
+        out.direct += area * d.element_sum();
+        return e.emission.as_dvec3() + rho * inc;
+    }
+    let mut acc = DVec3::ZERO;
+    for c in el.children(id) {
+        let b = push_rec(el, h_cluster, c, h, out);
+        out.updates.push((c, b));
+        acc += b;
+    }
+    acc / e.num_children as f64
+}

@@ -1,0 +1,1 @@
+//! Volumetric transmittance through a cluster tree (Sillion 1995). Work in progress.

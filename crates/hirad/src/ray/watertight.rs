@@ -1,0 +1,235 @@
+//! Watertight ray–triangle intersection (Woop, Benthin & Wald, *Watertight Ray/Triangle
+//! Intersection*, JCGT 2013) and the per-ray precomputation it shares with the slab test.
+//!
+//! The ray is transformed (translation to the origin, permutation of the axes so that the
+//! dominant direction axis becomes z, shear so that the direction becomes +z) and the triangle
+//! edge functions are evaluated in 2D. Vertices shared by neighbouring triangles are transformed
+//! identically, so the edge function of a shared edge is computed bit-identically (with opposite
+//! sign) by both triangles: a ray can never slip between them. Edge functions that evaluate to
+//! exactly zero are recomputed in f64 to get their sign right. Both faces are hit (no culling).
+
+use glam::Vec3;
+
+/// Triangle vertices as stored by the traversal layout: `[x0, y0, z0, x1, y1, z1, x2, y2, z2]`.
+pub type TriVerts = [f32; 9];
+
+/// Per-ray data shared by the box and triangle tests.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPre {
+    /// Origin.
+    pub o: [f32; 3],
+    /// Reciprocal direction (±∞ for zero components, sign of the zero kept).
+    pub inv: [f32; 3],
+    /// Index of the near box plane per axis in `[minx, miny, minz, maxx, maxy, maxz]`.
+    pub near: [usize; 3],
+    /// Index of the far box plane per axis.
+    pub far: [usize; 3],
+    /// Axis permutation of the watertight test: `kz` is the dominant axis of the direction.
+    pub kx: usize,
+    pub ky: usize,
+    pub kz: usize,
+    /// Shear constants.
+    pub sx: f32,
+    pub sy: f32,
+    pub sz: f32,
+}
+
+impl RayPre {
+    /// Precompute the ray data. Returns `None` for a direction that is zero or not finite, or a
+    /// non-finite origin (such a ray hits nothing).
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3) -> Option<RayPre> {
+        if !origin.is_finite() || !dir.is_finite() || dir == Vec3::ZERO {
+            return None;
+        }
+        let d = dir.to_array();
+        let ad = dir.abs();
+        let kz = if ad.x >= ad.y && ad.x >= ad.z {
+            0
+        } else if ad.y >= ad.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the 2D projection consistent.
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sx = d[kx] / d[kz];
+        let sy = d[ky] / d[kz];
+        let sz = 1.0 / d[kz];
+        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        let mut near = [0usize; 3];
+        let mut far = [0usize; 3];
+        for a in 0..3 {
+            // The sign bit decides, so that -0.0 gives -∞ consistently.
+            if inv[a].is_sign_negative() {
+                near[a] = a + 3;
+                far[a] = a;
+            } else {
+                near[a] = a;
+                far[a] = a + 3;
+            }
+        }
+        Some(RayPre {
+            o: origin.to_array(),
+            inv,
+            near,
+            far,
+            kx,
+            ky,
+            kz,
+            sx,
+            sy,
+            sz,
+        })
+    }
+
+    /// Slab test against `b = [minx, miny, minz, maxx, maxy, maxz]` clipped to `[tmin, tmax]`.
+    /// Returns the entry parameter when the box is (conservatively) hit.
+    ///
+    /// Conservative: the far distance is enlarged by a relative [`BOX_SLACK`] so that f32
+    /// rounding never culls a box whose contents the triangle test would hit. A component of
+    /// the direction equal to zero with the origin exactly on a box plane gives `0·∞ = NaN`;
+    /// the comparisons below ignore NaN, which treats the ray (lying in that plane) as inside
+    /// the slab, as it is.
+    #[inline(always)]
+    pub fn slab(&self, b: &[f32; 6], tmin: f32, tmax: f32) -> Option<f32> {
+        let mut tn = tmin;
+        let mut tf = tmax;
+        for a in 0..3 {
+            let t0 = (b[self.near[a]] - self.o[a]) * self.inv[a];
+            let t1 = (b[self.far[a]] - self.o[a]) * self.inv[a];
+            // NaN compares false: it leaves the running bound unchanged.
+            tn = if t0 > tn { t0 } else { tn };
+            tf = if t1 < tf { t1 } else { tf };
+        }
+        (tn <= tf * BOX_SLACK).then_some(tn)
+    }
+}
+
+/// Relative slack of the slab test's far distance (about 16 ulp of f32).
+pub const BOX_SLACK: f32 = 1.0 + 1e-6;
+
+/// Watertight intersection of a precomputed ray with a triangle, for `t ∈ [tmin, tmax]`.
+/// Returns `(t, u, v)`: `u` is the barycentric weight of vertex 1, `v` of vertex 2.
+#[inline(always)]
+pub fn intersect(r: &RayPre, tri: &TriVerts, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
+    let (kx, ky, kz) = (r.kx, r.ky, r.kz);
+    let a = [tri[0] - r.o[0], tri[1] - r.o[1], tri[2] - r.o[2]];
+    let b = [tri[3] - r.o[0], tri[4] - r.o[1], tri[5] - r.o[2]];
+    let c = [tri[6] - r.o[0], tri[7] - r.o[1], tri[8] - r.o[2]];
+    let ax = a[kx] - r.sx * a[kz];
+    let ay = a[ky] - r.sy * a[kz];
+    let bx = b[kx] - r.sx * b[kz];
+    let by = b[ky] - r.sy * b[kz];
+    let cx = c[kx] - r.sx * c[kz];
+    let cy = c[ky] - r.sy * c[kz];
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        // Exact sign of the edge functions in double precision (products of f32 are exact).
+        let (axd, ayd, bxd, byd, cxd, cyd) = (
+            ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+        );
+        u = (cxd * byd - cyd * bxd) as f32;
+        v = (axd * cyd - ayd * cxd) as f32;
+        w = (bxd * ayd - byd * axd) as f32;
+    }
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let az = r.sz * a[kz];
+    let bz = r.sz * b[kz];
+    let cz = r.sz * c[kz];
+    let t_scaled = u * az + v * bz + w * cz;
+    let rcp = 1.0 / det;
+    let t = t_scaled * rcp;
+    if !(t >= tmin && t <= tmax) {
+        return None;
+    }
+    Some((t, v * rcp, w * rcp))
+}
+
+/// Convenience: intersect a ray with a triangle given by its corners.
+pub fn intersect_triangle(
+    [p0, p1, p2]: [Vec3; 3],
+    origin: Vec3,
+    dir: Vec3,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, f32, f32)> {
+    let r = RayPre::new(origin, dir)?;
+    let tri = [p0.x, p0.y, p0.z, p1.x, p1.y, p1.z, p2.x, p2.y, p2.z];
+    intersect(&r, &tri, tmin, tmax)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hits_inside_misses_outside() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let (t, u, v) =
+            intersect_triangle(tri, Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 0.0, 10.0).unwrap();
+        assert!((t - 1.0).abs() < 1e-6);
+        assert!((u - 0.25).abs() < 1e-6 && (v - 0.25).abs() < 1e-6);
+        // Back face is hit as well.
+        let (t, _, _) =
+            intersect_triangle(tri, Vec3::new(0.25, 0.25, -2.0), Vec3::Z, 0.0, 10.0).unwrap();
+        assert!((t - 2.0).abs() < 1e-6);
+        assert!(intersect_triangle(tri, Vec3::new(0.6, 0.6, 1.0), -Vec3::Z, 0.0, 10.0).is_none());
+        // Outside the t range.
+        assert!(intersect_triangle(tri, Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 0.0, 0.5).is_none());
+        assert!(intersect_triangle(tri, Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 1.5, 3.0).is_none());
+        // Degenerate rays hit nothing.
+        assert!(intersect_triangle(tri, Vec3::new(0.2, 0.2, 1.0), Vec3::ZERO, 0.0, 3.0).is_none());
+        assert!(RayPre::new(Vec3::NAN, Vec3::X).is_none());
+    }
+
+    #[test]
+    fn edges_and_vertices_are_hit() {
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        // Exactly on the hypotenuse, on an axis edge and on a vertex.
+        for p in [
+            Vec3::new(0.5, 0.5, 1.0),
+            Vec3::new(0.5, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ] {
+            assert!(
+                intersect_triangle(tri, p, -Vec3::Z, 0.0, 10.0).is_some(),
+                "{p}"
+            );
+        }
+    }
+
+    #[test]
+    fn slab_handles_parallel_rays_on_planes() {
+        let b = [0.0, 0.0, 0.0, 1.0, 0.0, 1.0]; // flat box in y = 0
+        // In the plane of the flat box, parallel to it.
+        let r = RayPre::new(Vec3::new(-1.0, 0.0, 0.5), Vec3::X).unwrap();
+        assert_eq!(r.slab(&b, 0.0, 10.0), Some(1.0));
+        // Origin on the max plane (z = 1), direction parallel to it.
+        let r = RayPre::new(Vec3::new(-1.0, 0.0, 1.0), Vec3::X).unwrap();
+        assert!(r.slab(&b, 0.0, 10.0).is_some());
+        // Negative-zero component.
+        let r = RayPre::new(Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, -0.0, -0.0)).unwrap();
+        assert!(r.slab(&b, 0.0, 10.0).is_some());
+        // Parallel but off the plane.
+        let r = RayPre::new(Vec3::new(-1.0, 0.1, 0.5), Vec3::X).unwrap();
+        assert!(r.slab(&b, 0.0, 10.0).is_none());
+        // Crossing the flat box.
+        let r = RayPre::new(Vec3::new(0.5, 1.0, 0.5), -Vec3::Y).unwrap();
+        assert_eq!(r.slab(&b, 0.0, 10.0), Some(1.0));
+        assert!(r.slab(&b, 0.0, 0.5).is_none());
+    }
+}

@@ -1,0 +1,150 @@
+//! Resumable result store of a study: one JSON file per finished unit of work, written
+//! atomically when the unit completes. A rerun reads what is there and skips it; a file that
+//! does not parse (which atomic writes should make impossible) is treated as missing and redone.
+
+use crate::io::write_json_atomic;
+use crate::Result;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// A directory of finished results addressed by string keys such as `solve/okdt/eps-1e-3`.
+#[derive(Clone, Debug)]
+pub struct Store {
+    dir: PathBuf,
+}
+
+impl Store {
+    /// A store rooted at `dir` (created on first write).
+    pub fn new(dir: impl Into<PathBuf>) -> Store {
+        Store { dir: dir.into() }
+    }
+
+    /// Root directory.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// File that holds `key`: each `/`-separated part is sanitised to `[A-Za-z0-9._-]`.
+    pub fn path(&self, key: &str) -> PathBuf {
+        let mut p = self.dir.clone();
+        for part in key.split('/').filter(|s| !s.is_empty()) {
+            let clean: String = part
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-') {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            p.push(if clean == "." || clean == ".." {
+                "_".to_string()
+            } else {
+                clean
+            });
+        }
+        p.set_extension("json");
+        p
+    }
+
+    /// The stored value of `key`, if a complete one exists.
+    pub fn get<T: DeserializeOwned>(&self, key: &str) -> Option<T> {
+        let text = std::fs::read_to_string(self.path(key)).ok()?;
+        match serde_json::from_str(&text) {
+            Ok(v) => Some(v),
+            Err(e) => {
+                tracing::warn!("ignoring unreadable result {}: {e}", self.path(key).display());
+                None
+            }
+        }
+    }
+
+    /// True when `key` is finished.
+    pub fn has(&self, key: &str) -> bool {
+        self.path(key).is_file()
+    }
+
+    /// Store `value` under `key` atomically.
+    pub fn put<T: Serialize>(&self, key: &str, value: &T) -> Result<()> {
+        write_json_atomic(&self.path(key), value)
+    }
+
+    /// Return the stored value of `key`, or compute, store and return it.
+    pub fn get_or_run<T, F>(&self, key: &str, run: F) -> Result<(T, bool)>
+    where
+        T: Serialize + DeserializeOwned,
+        F: FnOnce() -> Result<T>,
+    {
+        if let Some(v) = self.get(key) {
+            return Ok((v, true));
+        }
+        let v = run()?;
+        self.put(key, &v)?;
+        Ok((v, false))
+    }
+
+    /// Every stored key under `prefix` (a directory key), sorted.
+    pub fn keys(&self, prefix: &str) -> Vec<String> {
+        let base = self.path(prefix).with_extension("");
+        let mut out = Vec::new();
+        let mut stack = vec![base.clone()];
+        while let Some(d) = stack.pop() {
+            let Ok(rd) = std::fs::read_dir(&d) else {
+                continue;
+            };
+            for e in rd.flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else if p.extension().is_some_and(|x| x == "json") {
+                    if let Ok(rel) = p.with_extension("").strip_prefix(&self.dir) {
+                        out.push(rel.to_string_lossy().replace('\\', "/"));
+                    }
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn put_get_skip_and_sanitise() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = Store::new(dir.path());
+        assert_eq!(s.get::<f64>("solve/okdt-p/eps 1e-3"), None);
+        let mut calls = 0;
+        let (v, cached) = s
+            .get_or_run("solve/okdt-p/eps 1e-3", || {
+                calls += 1;
+                Ok(2.5f64)
+            })
+            .unwrap();
+        assert_eq!((v, cached), (2.5, false));
+        let (v, cached) = s
+            .get_or_run("solve/okdt-p/eps 1e-3", || {
+                calls += 1;
+                Ok(9.0f64)
+            })
+            .unwrap();
+        assert_eq!((v, cached, calls), (2.5, true, 1));
+        assert!(s.path("a/../b").starts_with(dir.path()));
+        assert!(s.path("solve/okdt-p/eps 1e-3").ends_with("solve/okdt-p/eps_1e-3.json"));
+        assert_eq!(s.keys("solve"), vec!["solve/okdt-p/eps_1e-3".to_string()]);
+        // A corrupt file counts as missing.
+        std::fs::write(s.path("bad"), "{not json").unwrap();
+        assert_eq!(s.get::<f64>("bad"), None);
+        // No temporary files are left behind.
+        let leftovers = std::fs::read_dir(dir.path().join("solve/okdt-p"))
+            .unwrap()
+            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".tmp"))
+            .count();
+        assert_eq!(leftovers, 0);
+    }
+}

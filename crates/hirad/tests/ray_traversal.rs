@@ -1,0 +1,375 @@
+//! Ray casting through cluster trees: the traversal must agree exactly with a brute-force loop
+//! over every triangle (occlusion and closest hit), for any tree shape (surfaces at inner nodes,
+//! overlapping boxes, many children), and never let a ray slip through shared edges.
+
+use glam::Vec3;
+use hirad::cluster::{BuildNode, BuildTree, ClusterConfig, ClusterTree, Prims, Strategy};
+use hirad::geom::Aabb;
+use hirad::ray::{RayCaster, RayStats, Segment};
+use hirad::rng::SplitMix64;
+use hirad::scene::{Material, RawScene, Scene, SceneOptions};
+use proptest::prelude::*;
+
+fn scene_from(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
+    let n = triangles.len();
+    let raw = RawScene {
+        name: "test".into(),
+        positions,
+        triangles,
+        tri_material: vec![0; n],
+        tri_object: vec![0; n],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// Random small scene: random triangles plus axis-aligned quads on a coarse grid (coplanar
+/// faces, shared edges and boxes that are flat, so that grazing cases occur).
+fn random_scene(seed: u64, n_random: usize, n_quads: usize) -> Scene {
+    let mut g = SplitMix64::new(seed);
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for _ in 0..n_random {
+        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * 4.0;
+        let s = 0.05 + g.next_f32() * 1.0;
+        let base = pos.len() as u32;
+        for _ in 0..3 {
+            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * s);
+        }
+        tris.push([base, base + 1, base + 2]);
+    }
+    let grid = |g: &mut SplitMix64| (g.next_u64() % 17) as f32 * 0.25;
+    for _ in 0..n_quads {
+        let axis = (g.next_u64() % 3) as usize;
+        let c = grid(&mut g);
+        let (u0, u1) = {
+            let a = grid(&mut g);
+            let b = grid(&mut g);
+            (a.min(b), a.max(b) + 0.25)
+        };
+        let (v0, v1) = {
+            let a = grid(&mut g);
+            let b = grid(&mut g);
+            (a.min(b), a.max(b) + 0.25)
+        };
+        let mk = |u: f32, v: f32| match axis {
+            0 => Vec3::new(c, u, v),
+            1 => Vec3::new(u, c, v),
+            _ => Vec3::new(u, v, c),
+        };
+        let base = pos.len() as u32;
+        pos.extend([mk(u0, v0), mk(u1, v0), mk(u1, v1), mk(u0, v1)]);
+        tris.push([base, base + 1, base + 2]);
+        tris.push([base, base + 2, base + 3]);
+    }
+    scene_from(pos, tris)
+}
+
+/// Random tree over the scene's surfaces: surfaces kept at inner nodes, 1..=6 children of
+/// random sizes, tight boxes (which overlap freely).
+fn random_tree(scene: &Scene, seed: u64) -> ClusterTree {
+    fn rec(
+        b: &mut BuildTree,
+        prims: &Prims,
+        mut items: Vec<u32>,
+        g: &mut SplitMix64,
+        depth: u32,
+    ) -> u32 {
+        // Shuffle.
+        for i in (1..items.len()).rev() {
+            let j = (g.next_u64() % (i as u64 + 1)) as usize;
+            items.swap(i, j);
+        }
+        let keep = if items.len() <= 3 || depth > 8 {
+            items.len()
+        } else {
+            (g.next_u64() % (items.len() as u64 / 3 + 1)) as usize
+        };
+        let rest = items.split_off(keep);
+        let mut children = Vec::new();
+        let mut rest = rest;
+        while !rest.is_empty() {
+            let k = 1 + (g.next_u64() % 6) as usize;
+            let take = (rest.len() / k).max(1).min(rest.len());
+            let part: Vec<u32> = rest.drain(..take).collect();
+            children.push(rec(b, prims, part, g, depth + 1));
+        }
+        let mut bbox = Aabb::EMPTY;
+        for &s in &items {
+            bbox.grow_box(&prims.bbox[s as usize]);
+        }
+        for &c in &children {
+            let cb = b.nodes[c as usize].bbox;
+            bbox.grow_box(&cb);
+        }
+        b.push(BuildNode {
+            bbox,
+            children,
+            surfaces: items,
+        })
+    }
+    let prims = Prims::from_scene(scene);
+    let mut g = SplitMix64::new(seed);
+    let mut b = BuildTree::default();
+    let all: Vec<u32> = (0..scene.num_triangles() as u32).collect();
+    b.root = rec(&mut b, &prims, all, &mut g, 0);
+    let t = ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    );
+    t.validate(&prims).unwrap();
+    t
+}
+
+/// Random segments between random points of the scene box and grid points (so that some run
+/// exactly in the planes of the axis-aligned quads).
+fn random_segments(scene: &Scene, seed: u64, n: usize) -> Vec<Segment> {
+    let mut g = SplitMix64::new(seed);
+    let b = scene.bbox;
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let pt = |g: &mut SplitMix64| {
+            if i % 3 == 0 {
+                Vec3::new(
+                    (g.next_u64() % 19) as f32 * 0.25 - 0.25,
+                    (g.next_u64() % 19) as f32 * 0.25 - 0.25,
+                    (g.next_u64() % 19) as f32 * 0.25 - 0.25,
+                )
+            } else {
+                b.min - 0.5 + Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * (b.extent() + 1.0)
+            }
+        };
+        let p = pt(&mut g);
+        let mut q = pt(&mut g);
+        if i % 3 == 0 && i % 2 == 0 {
+            // Axis-parallel segment in a grid plane.
+            let axis = (g.next_u64() % 3) as usize;
+            for a in 0..3 {
+                if a != axis {
+                    q[a] = p[a];
+                }
+            }
+        }
+        if q == p {
+            q.x += 1.0;
+        }
+        out.push(Segment::between(p, q));
+    }
+    out
+}
+
+fn check_against_brute(scene: &Scene, tree: &ClusterTree, segs: &[Segment]) -> u64 {
+    let rc = RayCaster::new(scene, tree);
+    let mut occluded = 0;
+    for s in segs {
+        let brute = rc.occluded_brute(s.origin, s.dir, s.tmin, s.tmax);
+        assert_eq!(rc.occluded(s.origin, s.dir, s.tmin, s.tmax), brute, "{s:?}");
+        occluded += brute as u64;
+        let bc = rc.closest_brute(s.origin, s.dir, s.tmin, s.tmax);
+        assert_eq!(rc.closest(s.origin, s.dir, s.tmin, s.tmax), bc, "{s:?}");
+        assert_eq!(bc.is_some(), brute);
+        // Unbounded rays too.
+        let bc = rc.closest_brute(s.origin, s.dir, 0.0, f32::INFINITY);
+        assert_eq!(rc.closest(s.origin, s.dir, 0.0, f32::INFINITY), bc, "{s:?}");
+    }
+    occluded
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn random_trees_match_brute_force(
+        seed in any::<u64>(),
+        n_random in 0usize..40,
+        n_quads in 1usize..12,
+    ) {
+        let scene = random_scene(seed, n_random, n_quads);
+        let tree = random_tree(&scene, seed ^ 0x55);
+        let segs = random_segments(&scene, seed ^ 0xAA, 300);
+        check_against_brute(&scene, &tree, &segs);
+        // The same through every strategy's tree.
+        for st in Strategy::ALL {
+            let t = ClusterTree::build(&scene, st, &ClusterConfig::default());
+            check_against_brute(&scene, &t, &segs[..100]);
+        }
+    }
+}
+
+#[test]
+fn hand_built_trees_hit_something() {
+    // The random scenes are not trivially empty: a good share of the segments is occluded.
+    let scene = random_scene(7, 30, 10);
+    let tree = random_tree(&scene, 8);
+    let segs = random_segments(&scene, 9, 2000);
+    let occ = check_against_brute(&scene, &tree, &segs);
+    assert!(occ > 200 && occ < 1900, "{occ}");
+    // The tree has inner surfaces and several levels.
+    assert!(tree.nodes.iter().any(|n| n.num_children > 0 && n.num_surfaces > 0));
+    assert!(tree.nodes.iter().map(|n| n.depth).max().unwrap() >= 2);
+}
+
+/// Closed tessellated surface check: a warped N×N grid; rays aimed at its vertices, edge
+/// midpoints and random points from random origins above and below must all hit.
+#[test]
+fn watertight_on_shared_edges_and_vertices() {
+    let n = 24usize;
+    let mut g = SplitMix64::new(3);
+    let mut pos = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            // Irregular coordinates (not exactly representable steps) and a warp in z.
+            let x = i as f32 / n as f32 * 1.37 + 0.113;
+            let y = j as f32 / n as f32 * 0.91 - 0.271;
+            let z = 0.05 * (3.1 * x).sin() * (2.3 * y).cos() + 0.002 * g.next_f32();
+            pos.push(Vec3::new(x, y, z));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            // Alternate diagonals so that vertices have valence 4 and 8.
+            if (i + j) % 2 == 0 {
+                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            } else {
+                tris.push([id(i, j), id(i + 1, j), id(i, j + 1)]);
+                tris.push([id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+    }
+    let scene = scene_from(pos.clone(), tris);
+    let tree = random_tree(&scene, 11);
+    let rc = RayCaster::new(&scene, &tree);
+    let mut targets = Vec::new();
+    for j in 1..n {
+        for i in 1..n {
+            let p = pos[id(i, j) as usize];
+            targets.push(p);
+            targets.push((p + pos[id(i + 1, j) as usize]) * 0.5);
+            targets.push((p + pos[id(i, j + 1) as usize]) * 0.5);
+            targets.push((p + pos[id(i + 1, j + 1) as usize]) * 0.5);
+            targets.push((pos[id(i + 1, j) as usize] + pos[id(i, j + 1) as usize]) * 0.5);
+        }
+    }
+    let mut rays = 0;
+    for (k, &t) in targets.iter().enumerate() {
+        for side in [1.0f32, -1.0] {
+            let o = Vec3::new(
+                0.3 + 0.8 * g.next_f32(),
+                -0.2 + 0.6 * g.next_f32(),
+                side * (0.5 + 2.0 * g.next_f32()),
+            );
+            // Long ray through the target: its exact crossing point is within rounding of an
+            // edge or vertex of the mesh.
+            let d = t - o;
+            assert!(rc.occluded(o, d, 0.0, 2.0), "ray {k} slipped through at {t}");
+            assert!(rc.occluded_brute(o, d, 0.0, 2.0));
+            let h = rc.closest(o, d, 0.0, 2.0).unwrap();
+            assert_eq!(Some(h), rc.closest_brute(o, d, 0.0, 2.0));
+            assert!((h.t - 1.0).abs() < 1e-3, "t = {}", h.t);
+            // Number of triangles the ray hits: at least one, at most the vertex valence.
+            let hits = (0..scene.num_triangles())
+                .filter(|&i| {
+                    hirad::ray::watertight::intersect_triangle(
+                        scene.tri_vertices(i),
+                        o,
+                        d,
+                        0.0,
+                        2.0,
+                    )
+                    .is_some()
+                })
+                .count();
+            assert!((1..=8).contains(&hits), "{hits}");
+            rays += 1;
+        }
+    }
+    assert_eq!(rays, 2 * 5 * (n - 1) * (n - 1));
+    // Rays along the mesh plane direction through a flat grid of quads (grazing, axis-aligned):
+    // the watertight test decides; tree and brute force must agree.
+    let flat = random_scene(5, 0, 30);
+    let t = random_tree(&flat, 6);
+    let segs = random_segments(&flat, 12, 3000);
+    check_against_brute(&flat, &t, &segs);
+}
+
+/// A straight line through a vertex shared by the fan of a flat polygon hits exactly the
+/// triangles that meet there, and a ray through the middle of a shared edge hits both sides.
+#[test]
+fn shared_edge_hit_counts() {
+    // Square split along its diagonal.
+    let scene = scene_from(
+        vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    );
+    let count = |o: Vec3, d: Vec3| {
+        (0..2)
+            .filter(|&i| {
+                hirad::ray::watertight::intersect_triangle(scene.tri_vertices(i), o, d, 0.0, 10.0)
+                    .is_some()
+            })
+            .count()
+    };
+    // Through the diagonal: both triangles report the hit (no slip, no gap).
+    assert_eq!(count(Vec3::new(0.5, 0.5, 1.0), -Vec3::Z), 2);
+    assert_eq!(count(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z), 2);
+    // Inside one triangle only.
+    assert_eq!(count(Vec3::new(0.7, 0.2, 1.0), -Vec3::Z), 1);
+    // Oblique rays crossing the diagonal at many points: always at least one hit.
+    let mut g = SplitMix64::new(1);
+    let tree = ClusterTree::build(&scene, Strategy::Sah, &ClusterConfig::default());
+    let rc = RayCaster::new(&scene, &tree);
+    for _ in 0..2000 {
+        let s = 0.01 + 0.98 * g.next_f32();
+        let target = Vec3::new(s, s, 0.0);
+        let o = Vec3::new(g.next_f32() * 3.0 - 1.0, g.next_f32() * 3.0 - 1.0, 1.0);
+        assert!(count(o, target - o) >= 1);
+        assert!(rc.occluded(o, target - o, 0.0, 2.0));
+    }
+}
+
+#[test]
+fn batch_results_do_not_depend_on_threads() {
+    let scene = random_scene(21, 200, 40);
+    let tree = random_tree(&scene, 22);
+    let rc = RayCaster::new(&scene, &tree);
+    let segs = hirad::ray::sample::sample_segments(&scene, 5000, 1);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                (
+                    rc.occluded_batch(&segs),
+                    rc.closest_batch(&segs),
+                    rc.occluded_batch_stats(&segs),
+                    rc.count_occluded(&segs),
+                )
+            })
+    };
+    let a = run(1);
+    let b = run(2);
+    assert_eq!(a, b);
+    let occ = a.0.iter().filter(|&&x| x).count() as u64;
+    assert_eq!(occ, a.3);
+    assert_eq!(occ, a.2 .0);
+    assert_eq!(a.1.iter().filter(|h| h.is_some()).count() as u64, occ);
+    let st: RayStats = a.2 .1;
+    assert_eq!(st.rays, segs.len() as u64);
+    assert!(st.nodes >= st.rays / 2 && st.tris > 0);
+    // Sequential calls give the same answers.
+    for (s, &o) in segs.iter().zip(&a.0).take(500) {
+        assert_eq!(rc.occluded(s.origin, s.dir, s.tmin, s.tmax), o);
+    }
+}
