@@ -58,6 +58,8 @@ enum Command {
     Diff(cmd::diff::Args),
     /// Path-traced reference image of a scene.
     Reference(cmd::reference::Args),
+    /// The paper's experiments end to end: statistics, ray casting, ε sweeps, plots, report.
+    Study(cmd::study::Args),
 }
 
 fn main() {
@@ -81,6 +83,7 @@ fn main() {
         Command::Render(a) => cmd::render::run(a, &cli.global),
         Command::Diff(a) => cmd::diff::run(a, &cli.global),
         Command::Reference(a) => cmd::reference::run(a, &cli.global),
+        Command::Study(a) => cmd::study::run(a, &cli.global),
     };
     if let Err(e) = r {
         eprintln!("error: {e:#}");

@@ -271,7 +271,8 @@ fn watertight_on_shared_edges_and_vertices() {
             assert!(rc.occluded_brute(o, d, 0.0, 2.0));
             let h = rc.closest(o, d, 0.0, 2.0).unwrap();
             assert_eq!(Some(h), rc.closest_brute(o, d, 0.0, 2.0));
-            assert!((h.t - 1.0).abs() < 1e-3, "t = {}", h.t);
+            // Targets on a diagonal that is not an edge of the warped mesh lie slightly off it.
+            assert!((h.t - 1.0).abs() < 2e-2, "t = {}", h.t);
             // Number of triangles the ray hits: at least one, at most the vertex valence.
             let hits = (0..scene.num_triangles())
                 .filter(|&i| {

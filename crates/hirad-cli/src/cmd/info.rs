@@ -1,13 +1,136 @@
-//! Subcommand (not implemented yet).
+//! `hirad info SCENE`: counts, area, bounding box, materials, emitters and load time.
 
 use crate::Global;
+use hirad::scene::{SceneOptions, UpAxis};
+
+/// Scene-loading options shared by subcommands that load a scene (flatten into their `Args`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct LoadArgs {
+    /// Up axis of the scene, overriding what the file says (y or z).
+    #[arg(long, value_parser = parse_up)]
+    pub up: Option<UpAxis>,
+    /// Reflectance channels equal to 1 are clamped to this value.
+    #[arg(long, default_value_t = 0.95)]
+    pub max_reflectance: f32,
+}
+
+impl LoadArgs {
+    /// The library's scene options.
+    pub fn options(&self) -> SceneOptions {
+        SceneOptions {
+            max_reflectance: self.max_reflectance,
+            up: self.up,
+        }
+    }
+}
+
+fn parse_up(s: &str) -> Result<UpAxis, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "y" | "+y" => Ok(UpAxis::Y),
+        "z" | "+z" => Ok(UpAxis::Z),
+        _ => Err(format!("up axis must be y or z, got '{s}'")),
+    }
+}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene: a file path or a built-in name.
+    /// Scene: a file path (.obj, .gltf, .glb, .ply, .toml) or a built-in name.
     pub scene: String,
+    #[command(flatten)]
+    pub load: LoadArgs,
 }
 
-pub fn run(args: Args, _g: &Global) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet: {}", args.scene)
+pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
+    let scene = super::load_scene(&args.scene, &args.load.options())?;
+    let s = scene.summary();
+    if g.json {
+        return super::print_json(&s);
+    }
+    let rows: Vec<(&str, String)> = vec![
+        ("scene", s.name.clone()),
+        (
+            "source",
+            s.source
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| "built-in".into()),
+        ),
+        ("triangles", s.triangles.to_string()),
+        ("vertices", s.vertices.to_string()),
+        ("objects", s.objects.to_string()),
+        ("materials", s.materials.to_string()),
+        (
+            "emitters",
+            format!(
+                "{} materials, {} triangles",
+                s.emitter_materials, s.emitter_triangles
+            ),
+        ),
+        ("degenerate dropped", s.degenerate_dropped.to_string()),
+        (
+            "clamped rho",
+            if s.clamped_materials.is_empty() {
+                "none".into()
+            } else {
+                format!(
+                    "{} ({})",
+                    s.clamped_materials.len(),
+                    s.clamped_materials.join(", ")
+                )
+            },
+        ),
+        ("total area", format!("{:.6}", s.total_area)),
+        (
+            "bbox",
+            format!(
+                "({:.3}, {:.3}, {:.3}) -> ({:.3}, {:.3}, {:.3})",
+                s.bbox_min.x, s.bbox_min.y, s.bbox_min.z, s.bbox_max.x, s.bbox_max.y, s.bbox_max.z
+            ),
+        ),
+        (
+            "up",
+            match s.up {
+                UpAxis::Y => "+Y".into(),
+                UpAxis::Z => "+Z".into(),
+            },
+        ),
+        (
+            "emitted power",
+            format!(
+                "({:.6e}, {:.6e}, {:.6e})",
+                s.emitted_power[0], s.emitted_power[1], s.emitted_power[2]
+            ),
+        ),
+        (
+            "sun",
+            s.sun
+                .map(|sun| {
+                    format!(
+                        "direction {:?}, irradiance {:?}",
+                        sun.direction.to_array(),
+                        sun.irradiance.to_array()
+                    )
+                })
+                .unwrap_or_else(|| "none".into()),
+        ),
+        (
+            "sky",
+            s.sky
+                .map(|k| format!("{:?}", k.to_array()))
+                .unwrap_or_else(|| "none".into()),
+        ),
+        (
+            "cameras",
+            if s.cameras.is_empty() {
+                "none".into()
+            } else {
+                s.cameras.join(", ")
+            },
+        ),
+        ("load time", format!("{:.3} s", s.load_seconds)),
+    ];
+    for (k, v) in rows {
+        println!("{k:<20} {v}");
+    }
+    Ok(())
 }

@@ -8,6 +8,7 @@ pub mod reference;
 pub mod render;
 pub mod scene;
 pub mod solve;
+pub mod study;
 
 use hirad::scene::{Scene, SceneOptions};
 

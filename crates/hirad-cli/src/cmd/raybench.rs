@@ -1,13 +1,276 @@
-//! Subcommand (not implemented yet).
+//! `hirad raybench`: the paper's ray-casting test (`experiments.md` §2). Random segments between
+//! surface points are cast through each strategy's `ClusterTree`; prints build time, query time,
+//! Mrays/s, occluded count, speed relative to `sah`, and mean nodes visited / triangle tests per
+//! ray (counted in a separate pass, so the timed pass runs the uninstrumented code).
 
 use crate::Global;
+use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::progress::Progress;
+use hirad::ray::{sample, RayCaster, RayStats};
+use hirad::scene::SceneOptions;
+use serde::Serialize;
+use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Scene: a file path or a built-in name.
     pub scene: String,
+    /// Strategies: comma-separated names or `all`.
+    #[arg(long, default_value = "all")]
+    pub clustering: String,
+    /// Number of random segments.
+    #[arg(long, default_value_t = 100_000)]
+    pub pairs: usize,
+    /// Seed of the SplitMix64 segment sampler.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also time closest-hit queries with the same segments.
+    #[arg(long)]
+    pub closest: bool,
+    /// Timed repetitions of each query pass; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub repeat: usize,
+    /// Also count occluded segments by brute force (every triangle per segment; small scenes).
+    #[arg(long)]
+    pub brute: bool,
 }
 
-pub fn run(args: Args, _g: &Global) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet: {}", args.scene)
+/// Result of one strategy.
+#[derive(Debug, Serialize)]
+struct Row {
+    strategy: String,
+    clusters: usize,
+    build_ms: f64,
+    layout_ms: f64,
+    query_ms: f64,
+    mrays_per_s: f64,
+    occluded: u64,
+    /// Rays per second relative to `sah` (when `sah` is in the list).
+    rel_sah: Option<f64>,
+    nodes_per_ray: f64,
+    boxes_per_ray: f64,
+    tris_per_ray: f64,
+    closest: Option<ClosestRow>,
+}
+
+#[derive(Debug, Serialize)]
+struct ClosestRow {
+    query_ms: f64,
+    mrays_per_s: f64,
+    hits: u64,
+    rel_sah: Option<f64>,
+    nodes_per_ray: f64,
+    tris_per_ray: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    scene: String,
+    triangles: usize,
+    pairs: usize,
+    seed: u64,
+    threads: usize,
+    hirad_version: &'static str,
+    sample_ms: f64,
+    brute_occluded: Option<u64>,
+    counts_agree: bool,
+    rows: Vec<Row>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
+    let strategies = Strategy::parse_list(&args.clustering)?;
+    if args.pairs == 0 {
+        return Err(hirad::Error::Config("--pairs must be at least 1".into()).into());
+    }
+    let repeat = args.repeat.max(1);
+    let scene = super::load_scene(&args.scene, &SceneOptions::default())?;
+    let t0 = Instant::now();
+    let segs = sample::sample_segments(&scene, args.pairs, args.seed);
+    let sample_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let cfg = ClusterConfig::default();
+    let bars = crate::progress::Bars::new(g.quiet || g.json);
+    bars.start("raybench", strategies.len() as u64);
+    let mut rows = Vec::new();
+    let mut brute_occluded = None;
+    for &st in &strategies {
+        bars.message(st.name());
+        let t0 = Instant::now();
+        let tree = ClusterTree::build(&scene, st, &cfg);
+        let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let t0 = Instant::now();
+        let rc = RayCaster::new(&scene, &tree);
+        let layout_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let mut times = Vec::with_capacity(repeat);
+        let mut occluded = 0;
+        for _ in 0..repeat {
+            let t0 = Instant::now();
+            occluded = rc.count_occluded(&segs);
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let query_ms = median(times);
+        let (occ2, stats): (u64, RayStats) = rc.occluded_batch_stats(&segs);
+        debug_assert_eq!(occ2, occluded);
+        let closest = if args.closest {
+            let mut times = Vec::with_capacity(repeat);
+            for _ in 0..repeat {
+                let t0 = Instant::now();
+                let h = rc.closest_batch(&segs);
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+                std::hint::black_box(h);
+            }
+            let q = median(times);
+            let (hits, cs) = rc.closest_batch_stats(&segs);
+            Some(ClosestRow {
+                query_ms: q,
+                mrays_per_s: segs.len() as f64 / (q * 1e3),
+                hits,
+                rel_sah: None,
+                nodes_per_ray: cs.nodes_per_ray(),
+                tris_per_ray: cs.tris_per_ray(),
+            })
+        } else {
+            None
+        };
+        if args.brute && brute_occluded.is_none() {
+            use rayon::prelude::*;
+            brute_occluded = Some(
+                segs.par_iter()
+                    .filter(|s| rc.occluded_brute(s.origin, s.dir, s.tmin, s.tmax))
+                    .count() as u64,
+            );
+        }
+        rows.push(Row {
+            strategy: st.name().to_string(),
+            clusters: tree.nodes.len(),
+            build_ms,
+            layout_ms,
+            query_ms,
+            mrays_per_s: segs.len() as f64 / (query_ms * 1e3),
+            occluded,
+            rel_sah: None,
+            nodes_per_ray: stats.nodes_per_ray(),
+            boxes_per_ray: stats.boxes_per_ray(),
+            tris_per_ray: stats.tris_per_ray(),
+            closest,
+        });
+        bars.inc(1);
+    }
+    bars.finish();
+    if let Some(sah) = rows.iter().position(|r| r.strategy == "sah") {
+        let base = rows[sah].mrays_per_s;
+        let cbase = rows[sah].closest.as_ref().map(|c| c.mrays_per_s);
+        for r in &mut rows {
+            r.rel_sah = Some(r.mrays_per_s / base);
+            if let (Some(c), Some(cb)) = (r.closest.as_mut(), cbase) {
+                c.rel_sah = Some(c.mrays_per_s / cb);
+            }
+        }
+    }
+    let first = rows.first().map(|r| r.occluded);
+    let mut counts_agree = rows.iter().all(|r| Some(r.occluded) == first);
+    if let Some(b) = brute_occluded {
+        counts_agree &= first == Some(b);
+    }
+    if !counts_agree {
+        let list: Vec<String> = rows
+            .iter()
+            .map(|r| format!("{}={}", r.strategy, r.occluded))
+            .chain(brute_occluded.map(|b| format!("brute={b}")))
+            .collect();
+        eprintln!(
+            "warning: occluded counts differ between strategies: {}",
+            list.join(", ")
+        );
+    }
+    let report = Report {
+        scene: scene.name.clone(),
+        triangles: scene.num_triangles(),
+        pairs: segs.len(),
+        seed: args.seed,
+        threads: rayon::current_num_threads(),
+        hirad_version: hirad::VERSION,
+        sample_ms,
+        brute_occluded,
+        counts_agree,
+        rows,
+    };
+    if g.json {
+        return super::print_json(&report);
+    }
+    print_table(&report);
+    Ok(())
+}
+
+fn opt(x: Option<f64>, prec: usize) -> String {
+    x.map(|v| format!("{v:.prec$}"))
+        .unwrap_or_else(|| "-".into())
+}
+
+fn print_table(r: &Report) {
+    println!(
+        "scene {} ({} triangles), {} pairs, seed {}, {} thread(s), sampling {:.1} ms",
+        r.scene, r.triangles, r.pairs, r.seed, r.threads, r.sample_ms
+    );
+    if let Some(b) = r.brute_occluded {
+        println!("brute-force occluded: {b}");
+    }
+    println!(
+        "{:<8} {:>9} {:>10} {:>9} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8} {:>8}",
+        "strategy",
+        "clusters",
+        "build ms",
+        "layout ms",
+        "query ms",
+        "Mrays/s",
+        "occluded",
+        "vs sah",
+        "nodes/ray",
+        "boxes/ray",
+        "tris/ray"
+    );
+    for x in &r.rows {
+        println!(
+            "{:<8} {:>9} {:>10.1} {:>9.1} {:>10.1} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1} {:>8.1}",
+            x.strategy,
+            x.clusters,
+            x.build_ms,
+            x.layout_ms,
+            x.query_ms,
+            x.mrays_per_s,
+            x.occluded,
+            opt(x.rel_sah, 2),
+            x.nodes_per_ray,
+            x.boxes_per_ray,
+            x.tris_per_ray
+        );
+    }
+    if r.rows.iter().any(|x| x.closest.is_some()) {
+        println!();
+        println!(
+            "{:<8} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8}",
+            "closest", "query ms", "Mrays/s", "hits", "vs sah", "nodes/ray", "tris/ray"
+        );
+        for x in &r.rows {
+            if let Some(c) = &x.closest {
+                println!(
+                    "{:<8} {:>10.1} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1}",
+                    x.strategy,
+                    c.query_ms,
+                    c.mrays_per_s,
+                    c.hits,
+                    opt(c.rel_sah, 2),
+                    c.nodes_per_ray,
+                    c.tris_per_ray
+                );
+            }
+        }
+    }
+    if !r.counts_agree {
+        println!("WARNING: occluded counts are not identical across strategies");
+    }
 }

@@ -1,13 +1,40 @@
-//! Subcommand (not implemented yet).
+//! `hirad scene SCENE --out FILE`: write a scene (built-in or loaded) as `.obj` (+ `.mtl`) or
+//! `.glb`.
 
+use super::info::LoadArgs;
 use crate::Global;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene: a file path or a built-in name.
+    /// Scene: a built-in name or a file path.
     pub scene: String,
+    /// Output file: `.obj` (writes a `.mtl` next to it) or `.glb`.
+    #[arg(long, short)]
+    pub out: std::path::PathBuf,
+    #[command(flatten)]
+    pub load: LoadArgs,
 }
 
-pub fn run(args: Args, _g: &Global) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet: {}", args.scene)
+pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
+    let scene = super::load_scene(&args.scene, &args.load.options())?;
+    hirad::scene::export::write_scene(&args.out, &scene)?;
+    if g.json {
+        return super::print_json(&serde_json::json!({
+            "scene": scene.name,
+            "out": args.out,
+            "triangles": scene.num_triangles(),
+            "materials": scene.materials.len(),
+            "objects": scene.objects.len(),
+        }));
+    }
+    if !g.quiet {
+        println!(
+            "wrote {} ({} triangles, {} materials, {} objects)",
+            args.out.display(),
+            scene.num_triangles(),
+            scene.materials.len(),
+            scene.objects.len()
+        );
+    }
+    Ok(())
 }

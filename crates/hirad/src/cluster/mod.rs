@@ -146,6 +146,23 @@ impl Prims {
         }
     }
 
+    /// Builder inputs of a list of triangles (zero-area ones included), object 0 for all; for
+    /// tests and generated data that bypass [`Scene`].
+    pub fn from_triangles(tris: &[[Vec3; 3]]) -> Prims {
+        Prims {
+            bbox: tris
+                .iter()
+                .map(|&[a, b, c]| Aabb::new(a.min(b).min(c), a.max(b).max(c)))
+                .collect(),
+            centroid: tris.iter().map(|&[a, b, c]| (a + b + c) / 3.0).collect(),
+            area: tris
+                .iter()
+                .map(|&[a, b, c]| crate::geom::triangle_area(a, b, c))
+                .collect(),
+            object: vec![0; tris.len()],
+        }
+    }
+
     /// Number of surfaces.
     pub fn len(&self) -> usize {
         self.bbox.len()
@@ -390,11 +407,149 @@ impl ClusterTree {
     }
 }
 
+pub mod dump;
 pub mod kdt;
 pub mod obt;
 pub mod okdt;
 pub mod okdt_p;
 pub mod proxi;
 pub mod sah;
+pub mod stats;
 pub mod tf_oct;
 mod topdown;
+
+pub use stats::ClusterStats;
+
+/// A six-triangle scene whose trees and statistics are worked out by hand in the unit tests of
+/// the strategies and of [`stats`]. Bounding box `[0, 8]³`; s0 spans it, s4 = `[3, 5]×[0, 1]×0`
+/// crosses x = 4, s1, s2 lie in `[0, 2]³`, s3, s5 in `[5, 7]³`.
+#[cfg(test)]
+pub(crate) fn hand_scene() -> Prims {
+    let v = Vec3::new;
+    Prims::from_triangles(&[
+        [v(0., 0., 0.), v(8., 0., 0.), v(0., 8., 8.)],
+        [v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)],
+        [v(1., 1., 1.), v(2., 1., 1.), v(1., 2., 1.)],
+        [v(5., 5., 5.), v(6., 5., 5.), v(5., 6., 5.)],
+        [v(3., 0., 0.), v(5., 0., 0.), v(3., 1., 0.)],
+        [v(6., 6., 6.), v(7., 6., 6.), v(6., 7., 7.)],
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn b(min: [f32; 3], max: [f32; 3]) -> Aabb {
+        Aabb::new(Vec3::from(min), Vec3::from(max))
+    }
+
+    /// (box, sorted surfaces) of every node, breadth-first.
+    fn shape(t: &ClusterTree) -> Vec<(Aabb, Vec<u32>, u32)> {
+        (0..t.nodes.len() as u32)
+            .map(|i| {
+                let mut s = t.node_surfaces(i).to_vec();
+                s.sort_unstable();
+                (
+                    t.nodes[i as usize].bbox,
+                    s,
+                    t.nodes[i as usize].num_children,
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hand_scene_trees() {
+        let p = hand_scene();
+        let cfg = ClusterConfig::default();
+        let kdt = ClusterTree::build_prims(&p, Strategy::Kdt, &cfg);
+        assert_eq!(
+            shape(&kdt),
+            vec![
+                (b([0., 0., 0.], [8., 8., 8.]), vec![0, 4], 2),
+                (b([0., 0., 0.], [4., 8., 8.]), vec![1, 2], 0),
+                (b([4., 0., 0.], [8., 8., 8.]), vec![3, 5], 0),
+            ]
+        );
+        // λ = 0.5: s4 (size 2, centroid x = 11/3) is pushed left since 2 ≤ 0.5·8/2.
+        let half = ClusterConfig {
+            lambda: 0.5,
+            ..Default::default()
+        };
+        let obt = ClusterTree::build_prims(&p, Strategy::Obt, &half);
+        assert_eq!(
+            shape(&obt),
+            vec![
+                (b([0., 0., 0.], [8., 8., 8.]), vec![0], 2),
+                (b([0., 0., 0.], [5., 8., 8.]), vec![1, 2, 4], 0),
+                (b([4., 0., 0.], [8., 8., 8.]), vec![3, 5], 0),
+            ]
+        );
+        // Just below the threshold s4 stays: λ = 0.49 gives kdt.
+        let below = ClusterConfig {
+            lambda: 0.49,
+            ..Default::default()
+        };
+        let obt49 = ClusterTree::build_prims(&p, Strategy::Obt, &below);
+        assert_eq!(shape(&obt49), shape(&kdt));
+        let okdt = ClusterTree::build_prims(&p, Strategy::Okdt, &half);
+        assert_eq!(
+            shape(&okdt),
+            vec![
+                (b([0., 0., 0.], [8., 8., 8.]), vec![0], 2),
+                (b([0., 0., 0.], [5., 2., 1.]), vec![1, 2, 4], 0),
+                (b([5., 5., 5.], [7., 7., 7.]), vec![3, 5], 0),
+            ]
+        );
+        // tf-oct: octant size 4; s0 (size 8) stays, s1, s2, s4 go to the low octant, s3, s5
+        // to the high one.
+        let oct = ClusterTree::build_prims(&p, Strategy::TfOct, &cfg);
+        assert_eq!(
+            shape(&oct),
+            vec![
+                (b([0., 0., 0.], [8., 8., 8.]), vec![0], 2),
+                (b([0., 0., 0.], [5., 2., 1.]), vec![1, 2, 4], 0),
+                (b([5., 5., 5.], [7., 7., 7.]), vec![3, 5], 0),
+            ]
+        );
+        // sah: 6 > 4 surfaces, split into two leaves, surfaces only at leaves.
+        let sah = ClusterTree::build_prims(&p, Strategy::Sah, &cfg);
+        assert_eq!(sah.nodes.len(), 3);
+        assert_eq!(sah.nodes[0].num_surfaces, 0);
+        assert_eq!(sah.nodes[0].bbox, b([0., 0., 0.], [8., 8., 8.]));
+        for t in [&kdt, &obt, &okdt, &oct, &sah] {
+            assert_eq!(t.validate(&p), Ok(()));
+        }
+    }
+
+    #[test]
+    fn okdt_collapses_chains() {
+        // Two clumps far apart in one corner: obt has a chain of single-child cells above
+        // them, okdt goes straight from the root box to the two clumps.
+        let mut tris = Vec::new();
+        for k in 0..5 {
+            let o = Vec3::splat(0.01 * k as f32);
+            tris.push([o, o + Vec3::X * 0.01, o + Vec3::Y * 0.01]);
+            let q = Vec3::new(0.9, 0.0, 0.0) + o;
+            tris.push([q, q + Vec3::X * 0.01, q + Vec3::Y * 0.01]);
+        }
+        tris.push([Vec3::ZERO, Vec3::splat(64.0), Vec3::new(64.0, 0.0, 0.0)]);
+        let p = Prims::from_triangles(&tris);
+        let cfg = ClusterConfig::default();
+        let obt = ClusterTree::build_prims(&p, Strategy::Obt, &cfg);
+        let okdt = ClusterTree::build_prims(&p, Strategy::Okdt, &cfg);
+        assert!(obt
+            .nodes
+            .iter()
+            .any(|n| n.num_surfaces == 0 && n.num_children == 1));
+        assert!(okdt
+            .nodes
+            .iter()
+            .all(|n| n.num_surfaces > 0 || n.num_children == 2));
+        assert_eq!(okdt.node_surfaces(0), &[10]);
+        assert_eq!(okdt.nodes[0].num_children, 1);
+        assert!(okdt.nodes.len() < obt.nodes.len());
+        assert_eq!(okdt.validate(&p), Ok(()));
+    }
+}

@@ -38,7 +38,8 @@ pub fn recluster_overfull(prims: &Prims, cfg: &ClusterConfig, t: &mut BuildTree)
         .par_iter()
         .map(|&i| {
             let mut local = BuildTree::default();
-            local.root = proxi::build_subset(prims, &t.nodes[i as usize].surfaces, &local_cfg, &mut local);
+            local.root =
+                proxi::build_subset(prims, &t.nodes[i as usize].surfaces, &local_cfg, &mut local);
             local
         })
         .collect();
@@ -56,7 +57,8 @@ pub fn recluster_overfull(prims: &Prims, cfg: &ClusterConfig, t: &mut BuildTree)
             t.nodes.push(n);
         }
         let node: &mut BuildNode = &mut t.nodes[i as usize];
-        node.children.extend(root.children.iter().map(|&c| c + base));
+        node.children
+            .extend(root.children.iter().map(|&c| c + base));
         node.surfaces = root.surfaces;
     }
     if !overfull.is_empty() {

@@ -18,17 +18,23 @@
 //!    seed's cell and 8 from each neighbour, in Morton order), of which the 16 whose centres are
 //!    nearest to the seed's are kept;
 //! 2. greedy growth: repeatedly add the candidate that minimises the *volume ratio*
-//!    `ρ(G) = V(box(G)) / Σ_{o ∈ G} V(box(o))` of the grown group, among the candidates that
-//!    keep `size(box(G)) ≤ 2 c_k` (the group then fits the next coarser level), until the group
-//!    has `max_children` members or no candidate fits (ties go to the nearer candidate);
+//!    `ρ_k(G) = V_k(box(G)) / Σ_{o ∈ G} V_k(box(o))` of the grown group, among the candidates
+//!    that keep `ρ_k ≤ 1` (the group's box is no bigger than its members' floored volumes put
+//!    together) and `size(box(G)) ≤ 2 c_k` (the group fits the next coarser level), until the
+//!    group has `max_children` members or no candidate qualifies (ties go to the nearer
+//!    candidate);
 //! 3. a group of two or more objects becomes a cluster (its surfaces attached directly, its
 //!    clusters as children, box = union of the members' boxes, i.e. tight), which is an object
 //!    of level `min(k − 1, level(size))`; a seed left alone is passed to level `k − 1` as is.
 //!
-//! `V(b)` is the *floored box volume* `Π_axis max(e_axis, φ · max(size(b), c_k/2^10))` with
-//! `e` the box's edge lengths and `φ = 1/4`: flat or point-like boxes (triangles, coincident
-//! surfaces) get a volume proportional to their size cubed instead of zero, so the ratio is
-//! always finite and positive, and grouping coplanar neighbours is not free.
+//! `V_k(b)` is the *floored box volume* `Π_axis max(e_axis, φ c_k)` with `e` the box's edge
+//! lengths and `φ = 1/4`: flat boxes (triangles) and points (coincident or zero-area surfaces)
+//! get a volume instead of zero, so `ρ_k` is always finite and positive. A mesh's neighbouring
+//! triangles have overlapping boxes and group with `ρ_k < 1`; objects much smaller than `c_k`
+//! count as cubes of edge `φ c_k`, so two of them group once their distance is about
+//! `2 φ c_k = c_k / 2`: isolated objects rise through the levels until the grid is coarse enough
+//! for their neighbours. Once `φ c_k` exceeds the subset's size, every box counts as the same
+//! cube, `ρ_k = 1/|G|`, so the coarse levels always merge and the loop ends.
 //!
 //! Every cluster has at most `max_children` members in total (child clusters plus surfaces;
 //! `max_children < 2` is treated as 2). The run is sequential over the grouping itself, which
@@ -55,8 +61,8 @@ const GRID_BITS: u32 = 21;
 const MAX_LEVEL: i32 = 64;
 /// `φ`: minimum edge of a box, as a fraction of its size, in the floored volume.
 const VOLUME_FLOOR: f64 = 0.25;
-/// Minimum box size in the floored volume, as a power-of-two fraction of `c_k`.
-const POINT_FLOOR_LEVELS: i32 = 10;
+/// Largest volume ratio `ρ` of a group (see the module docs).
+const MAX_RATIO: f64 = 1.0;
 /// Candidates taken from the seed's own cell.
 const OWN_CELL_CANDIDATES: usize = 32;
 /// Candidates taken from each neighbouring cell.
@@ -173,12 +179,11 @@ impl Hasher for CellHasher {
 
 type CellMap = HashMap<u64, (u32, u32), BuildHasherDefault<CellHasher>>;
 
-/// Floored box volume `V(b)` (see the module docs); `floor_len` is `c_k / 2^10`.
+/// Floored box volume `V_k(b)` (see the module docs); `floor_len` is `φ · c_k`.
 #[inline]
 fn floored_volume(b: &Aabb, floor_len: f64) -> f64 {
     let e = b.extent();
-    let m = VOLUME_FLOOR * (e.max_element() as f64).max(floor_len);
-    (e.x as f64).max(m) * (e.y as f64).max(m) * (e.z as f64).max(m)
+    (e.x as f64).max(floor_len) * (e.y as f64).max(floor_len) * (e.z as f64).max(floor_len)
 }
 
 /// "Next ungrouped position" skip list with path halving.
@@ -276,7 +281,7 @@ impl<'a> Builder<'a> {
     /// Level of an object of size `size`: `floor(log2(s_ref / size))` clamped to the levels.
     fn level_of(&self, size: f32) -> i32 {
         let size = size as f64;
-        if !(size > 0.0) || !size.is_finite() {
+        if !size.is_finite() || size <= 0.0 {
             return self.k_fine;
         }
         let k = (self.s_ref / size).log2().floor();
@@ -383,7 +388,7 @@ impl<'a> Builder<'a> {
     ) -> usize {
         let c_k = self.s_ref * (-(k as f64)).exp2();
         let size_limit = (2.0 * c_k) as f32;
-        let floor_len = c_k * (-(POINT_FLOOR_LEVELS as f64)).exp2();
+        let floor_len = VOLUME_FLOOR * c_k;
         let m = {
             let r = (c_k / self.grid.unit).log2().ceil();
             if r.is_nan() {
@@ -485,12 +490,17 @@ impl<'a> Builder<'a> {
                         }
                         let o = &objects[objs[j as usize] as usize];
                         let u = group_box.union(&o.bbox);
-                        // `!(a <= b)` also rejects NaN sizes.
-                        if !(u.size() <= size_limit) {
+                        // Written so that NaN sizes are rejected too.
+                        let fits = u.size() <= size_limit;
+                        if !fits {
                             continue;
                         }
                         let v_o = floored_volume(&o.bbox, floor_len);
                         let ratio = floored_volume(&u, floor_len) / (sum_v + v_o);
+                        let dense = ratio <= MAX_RATIO;
+                        if !dense {
+                            continue;
+                        }
                         if best.is_none_or(|b| ratio < b.0) {
                             best = Some((ratio, ci, u, v_o));
                         }
@@ -638,12 +648,12 @@ mod tests {
     #[test]
     fn floored_volume_of_flat_and_point_boxes() {
         let flat = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 2.0, 0.0));
-        assert!((floored_volume(&flat, 0.0) - 1.0 * 2.0 * 0.5).abs() < 1e-12);
+        assert!((floored_volume(&flat, 0.25) - 1.0 * 2.0 * 0.25).abs() < 1e-12);
         let point = Aabb::new(Vec3::ONE, Vec3::ONE);
-        let l = 0.01;
-        assert!((floored_volume(&point, l) - (0.25 * l).powi(3)).abs() < 1e-18);
+        assert!((floored_volume(&point, 0.01) - 1e-6).abs() < 1e-18);
         let cube = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
-        assert!((floored_volume(&cube, 0.0) - 8.0).abs() < 1e-12);
+        assert!((floored_volume(&cube, 0.5) - 8.0).abs() < 1e-12);
+        assert!((floored_volume(&cube, 3.0) - 27.0).abs() < 1e-12);
     }
 
     #[test]

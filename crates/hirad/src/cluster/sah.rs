@@ -46,7 +46,7 @@ fn split(leaf: usize, items: &mut [Item]) -> (Aabb, Option<usize>) {
     let ext = cb.extent();
     let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin of the left side)
     for a in 0..3 {
-        if !(ext[a] > 0.0) {
+        if !ext[a].is_finite() || ext[a] <= 0.0 {
             continue;
         }
         let scale = BINS as f32 / ext[a];
@@ -85,7 +85,7 @@ fn split(leaf: usize, items: &mut [Item]) -> (Aabb, Option<usize>) {
         Some((_, a, last)) => {
             let scale = BINS as f32 / ext[a];
             let lo = cb.min[a];
-            let (_, nl, _) =
+            let (_, _, nl) =
                 topdown::partition3(items, |it| (bin_of(it.c[a], lo, scale) > last) as u8 + 1);
             nl
         }

@@ -145,7 +145,7 @@ impl Default for SolverConfig {
             eps: None,
             eps_rel: 0.02,
             min_area: None,
-            min_area_rel: 2e-5,
+            min_area_rel: 1e-4,
             shadow_rays: 4,
             visibility: VisibilityMode::Rays,
             vol_ratio: 0.1,

@@ -16,6 +16,7 @@ pub mod element;
 pub mod formfactor;
 pub mod link;
 pub mod oracle;
+pub mod output;
 pub mod solver;
 pub mod stats;
 pub mod visibility;

@@ -600,6 +600,7 @@ impl<'a> Solver<'a> {
                 let mut out = RootResult::default();
                 let area = e.area as f64;
                 out.gathered_cluster = area * hc.element_sum();
+                out.gathered = out.gathered_cluster;
                 let b = push_rec(el, h_cluster, r, hc, &mut out);
                 out.updates.push((r, b));
                 out.incident /= area;

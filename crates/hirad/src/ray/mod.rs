@@ -210,7 +210,7 @@ impl Layout {
 
 /// Traversal stack kept in a fixed array, spilling to the heap only for very deep or very wide
 /// trees.
-struct Stack<T: Copy + Default, const N: usize> {
+pub(crate) struct Stack<T: Copy + Default, const N: usize> {
     buf: [T; N],
     len: usize,
     heap: Vec<T>,
@@ -219,7 +219,7 @@ struct Stack<T: Copy + Default, const N: usize> {
 
 impl<T: Copy + Default, const N: usize> Stack<T, N> {
     #[inline(always)]
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self {
             buf: [T::default(); N],
             len: 0,
@@ -229,7 +229,7 @@ impl<T: Copy + Default, const N: usize> Stack<T, N> {
     }
 
     #[inline(always)]
-    fn push(&mut self, x: T) {
+    pub(crate) fn push(&mut self, x: T) {
         if !self.spilled {
             if self.len < N {
                 self.buf[self.len] = x;
@@ -244,7 +244,7 @@ impl<T: Copy + Default, const N: usize> Stack<T, N> {
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<T> {
+    pub(crate) fn pop(&mut self) -> Option<T> {
         if self.spilled {
             return self.heap.pop();
         }

@@ -78,8 +78,18 @@ fn closest_is_nearest_through_inner_node() {
         .closest_stats(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 10.0, &mut st)
         .is_some());
     assert_eq!(st.rays, 1);
-    assert_eq!(st.nodes, 2);
-    assert_eq!(st.tris, 2);
+    // The hit at the root (t = 1) culls the child box (entry t = 2).
+    assert_eq!(st.nodes, 1);
+    assert_eq!(st.tris, 1);
+    assert_eq!(st.boxes, 2);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0, &mut st));
+    // Any hit stops the query: the root's own triangle (t = 2) is tested first and hit.
+    assert_eq!((st.nodes, st.tris, st.boxes), (1, 1, 1));
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 1.5, &mut st));
+    // With tmax = 1.5 the root triangle is missed and the leaf's is hit.
+    assert_eq!((st.nodes, st.tris, st.boxes), (2, 2, 2));
 }
 
 #[test]

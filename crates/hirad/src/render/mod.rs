@@ -16,3 +16,9 @@ pub mod image;
 
 pub use camera::{CameraFrame, CameraOverrides, CameraView};
 pub use image::{Image, ImageFormat};
+pub mod raster;
+
+pub use raster::{rasterize, render_solution, BackFaces, MeshColors, RasterMesh, RasterOptions};
+pub mod pathtrace;
+
+pub use pathtrace::{render_reference, PathTracer, ReferenceOptions, ReferenceStats};

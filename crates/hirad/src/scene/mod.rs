@@ -402,6 +402,62 @@ impl Scene {
     }
 }
 
+/// Summary statistics of a scene (what `hirad info` prints).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneSummary {
+    pub name: String,
+    pub source: Option<PathBuf>,
+    pub triangles: usize,
+    pub vertices: usize,
+    pub objects: usize,
+    pub materials: usize,
+    /// Materials with non-zero emission.
+    pub emitter_materials: usize,
+    /// Triangles with an emitting material.
+    pub emitter_triangles: usize,
+    pub degenerate_dropped: usize,
+    pub clamped_materials: Vec<String>,
+    /// Total surface area (scene units²).
+    pub total_area: f64,
+    pub bbox_min: Vec3,
+    pub bbox_max: Vec3,
+    pub up: UpAxis,
+    /// Emitted power Φ = Σ π·L_e·A per channel (surfaces only).
+    pub emitted_power: [f64; 3],
+    pub sun: Option<Sun>,
+    pub sky: Option<Vec3>,
+    pub cameras: Vec<String>,
+    pub load_seconds: f64,
+}
+
+impl Scene {
+    /// Counts, area, bounding box, emitters and load report of the scene.
+    pub fn summary(&self) -> SceneSummary {
+        let emitter_materials = self.materials.iter().filter(|m| m.is_emitter()).count();
+        SceneSummary {
+            name: self.name.clone(),
+            source: self.source.clone(),
+            triangles: self.num_triangles(),
+            vertices: self.positions.len(),
+            objects: self.objects.len(),
+            materials: self.materials.len(),
+            emitter_materials,
+            emitter_triangles: self.emitters().len(),
+            degenerate_dropped: self.report.degenerate_dropped,
+            clamped_materials: self.report.clamped_materials.clone(),
+            total_area: self.total_area(),
+            bbox_min: self.bbox.min,
+            bbox_max: self.bbox.max,
+            up: self.up,
+            emitted_power: self.emitted_power().to_array(),
+            sun: self.sun,
+            sky: self.sky,
+            cameras: self.cameras.iter().map(|c| c.name.clone()).collect(),
+            load_seconds: self.report.load_seconds,
+        }
+    }
+}
+
 fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
     let path = Path::new(spec);
     if !path.exists() {

@@ -68,12 +68,17 @@ pub fn load_with_tobj(path: &Path) -> Result<RawScene> {
     };
     let mut raw = new_raw(path, &bytes);
     for m in &tmats {
-        let rho = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(DEFAULT_RHO));
-        let emission = match m.unknown_param.get("Ke") {
-            Some(s) => parse_rgb_str(s).ok_or_else(|| {
+        let rho = m
+            .diffuse
+            .map(Vec3::from)
+            .unwrap_or(Vec3::splat(DEFAULT_RHO));
+        // tobj 4 reads `Ke` into `emissive`; older versions left it in `unknown_param`.
+        let emission = match (m.emissive, m.unknown_param.get("Ke")) {
+            (Some(e), _) => Vec3::from(e),
+            (None, Some(s)) => parse_rgb_str(s).ok_or_else(|| {
                 Error::input(path, format!("material '{}': bad Ke '{s}'", m.name))
             })?,
-            None => Vec3::ZERO,
+            (None, None) => Vec3::ZERO,
         };
         raw.materials.push(Material {
             name: m.name.clone(),
@@ -150,7 +155,11 @@ pub fn header_up_axis(bytes: &[u8]) -> Option<UpAxis> {
         }
         let s = String::from_utf8_lossy(line).to_ascii_lowercase();
         for (axis, up) in [('z', UpAxis::Z), ('y', UpAxis::Y)] {
-            for pat in [format!("+{axis} up"), format!("{axis}-up"), format!("{axis} up")] {
+            for pat in [
+                format!("+{axis} up"),
+                format!("{axis}-up"),
+                format!("{axis} up"),
+            ] {
                 if s.contains(&pat) {
                     return Some(up);
                 }
@@ -411,7 +420,10 @@ fn parse(path: &Path, bytes: &[u8], allow_fallback: bool) -> Result<Option<RawSc
                 let files: Vec<PathBuf> = if whole.is_file() {
                     vec![whole]
                 } else {
-                    rest_s.split_ascii_whitespace().map(|f| dir.join(f)).collect()
+                    rest_s
+                        .split_ascii_whitespace()
+                        .map(|f| dir.join(f))
+                        .collect()
                 };
                 if files.is_empty() {
                     return Err(Error::input_at(path, line_no, "mtllib without a file name"));
@@ -594,7 +606,11 @@ mod tests {
         let p = write(d.path(), "a.obj", "v 0 0 0\nv 1 0 0\nv 1 nan 0\nf 1 2 3\n");
         let e = load(&p).unwrap_err().to_string();
         assert!(e.contains("a.obj:3:"), "{e}");
-        let p = write(d.path(), "b.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n");
+        let p = write(
+            d.path(),
+            "b.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n",
+        );
         let e = load(&p).unwrap_err().to_string();
         assert!(e.contains("b.obj:5:") && e.contains("vertex 9"), "{e}");
     }

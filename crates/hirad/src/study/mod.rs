@@ -7,3 +7,6 @@
 pub mod plot;
 pub mod score;
 pub mod store;
+pub mod records;
+pub mod report;
+pub mod run;

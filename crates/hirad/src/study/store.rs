@@ -28,7 +28,8 @@ impl Store {
     /// File that holds `key`: each `/`-separated part is sanitised to `[A-Za-z0-9._-]`.
     pub fn path(&self, key: &str) -> PathBuf {
         let mut p = self.dir.clone();
-        for part in key.split('/').filter(|s| !s.is_empty()) {
+        let parts: Vec<&str> = key.split('/').filter(|s| !s.is_empty()).collect();
+        for (i, part) in parts.iter().enumerate() {
             let clean: String = part
                 .chars()
                 .map(|c| {
@@ -39,14 +40,26 @@ impl Store {
                     }
                 })
                 .collect();
-            p.push(if clean == "." || clean == ".." {
+            let clean = if clean == "." || clean == ".." {
                 "_".to_string()
+            } else {
+                clean
+            };
+            // Keys may contain dots (`eps-2.0e-1`): append the extension, never replace.
+            p.push(if i + 1 == parts.len() {
+                format!("{clean}.json")
             } else {
                 clean
             });
         }
-        p.set_extension("json");
         p
+    }
+
+    /// Directory that holds the keys under `prefix`.
+    fn dir_of(&self, prefix: &str) -> PathBuf {
+        let p = self.path(prefix);
+        let name = p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        p.with_file_name(name.strip_suffix(".json").unwrap_or(&name))
     }
 
     /// The stored value of `key`, if a complete one exists.
@@ -87,7 +100,7 @@ impl Store {
 
     /// Every stored key under `prefix` (a directory key), sorted.
     pub fn keys(&self, prefix: &str) -> Vec<String> {
-        let base = self.path(prefix).with_extension("");
+        let base = self.dir_of(prefix);
         let mut out = Vec::new();
         let mut stack = vec![base.clone()];
         while let Some(d) = stack.pop() {
@@ -98,9 +111,10 @@ impl Store {
                 let p = e.path();
                 if p.is_dir() {
                     stack.push(p);
-                } else if p.extension().is_some_and(|x| x == "json") {
-                    if let Ok(rel) = p.with_extension("").strip_prefix(&self.dir) {
-                        out.push(rel.to_string_lossy().replace('\\', "/"));
+                } else if let Ok(rel) = p.strip_prefix(&self.dir) {
+                    let rel = rel.to_string_lossy().replace('\\', "/");
+                    if let Some(k) = rel.strip_suffix(".json") {
+                        out.push(k.to_string());
                     }
                 }
             }
@@ -137,6 +151,11 @@ mod tests {
         assert!(s.path("a/../b").starts_with(dir.path()));
         assert!(s.path("solve/okdt-p/eps 1e-3").ends_with("solve/okdt-p/eps_1e-3.json"));
         assert_eq!(s.keys("solve"), vec!["solve/okdt-p/eps_1e-3".to_string()]);
+        // Dots are kept: distinct ε give distinct files.
+        s.put("solve/kdt/eps-2.0000e-1", &1.0).unwrap();
+        s.put("solve/kdt/eps-2.0000e-2", &2.0).unwrap();
+        assert_eq!(s.get::<f64>("solve/kdt/eps-2.0000e-2"), Some(2.0));
+        assert_eq!(s.keys("solve/kdt").len(), 2);
         // A corrupt file counts as missing.
         std::fs::write(s.path("bad"), "{not json").unwrap();
         assert_eq!(s.get::<f64>("bad"), None);

@@ -258,7 +258,11 @@ impl MeshBuilder {
             let theta = std::f32::consts::PI * j as f32 / stacks as f32;
             for k in 0..segments {
                 let phi = std::f32::consts::TAU * k as f32 / segments as f32;
-                let d = Vec3::new(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin());
+                let d = Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    -theta.sin() * phi.sin(),
+                );
                 self.positions.push(c + d * r);
             }
         }
@@ -342,7 +346,14 @@ pub fn y_up_to_z_up(p: Vec3) -> Vec3 {
 }
 
 /// Camera named `name` with a 4:3 or square image as given.
-pub fn camera(name: &str, eye: Vec3, target: Vec3, fov_deg: f32, width: u32, height: u32) -> Camera {
+pub fn camera(
+    name: &str,
+    eye: Vec3,
+    target: Vec3,
+    fov_deg: f32,
+    width: u32,
+    height: u32,
+) -> Camera {
     Camera {
         name: name.to_string(),
         eye,
@@ -390,20 +401,29 @@ mod tests {
         assert_eq!(b.num_triangles(), 12 * 3 * 2 + 2 * 12);
         let axis_mid = c + Vec3::new(0.1, 0.5, -0.05);
         for t in 0..b.num_triangles() {
-            assert!(tri_normal(&b, t).dot(centroid(&b, t) - axis_mid) > 0.0, "cyl tri {t}");
+            assert!(
+                tri_normal(&b, t).dot(centroid(&b, t) - axis_mid) > 0.0,
+                "cyl tri {t}"
+            );
         }
         let mut b = MeshBuilder::new();
         b.sphere(c, 0.5, 10, 6, false);
         assert_eq!(b.num_triangles(), 2 * 10 + 2 * 10 * 4);
         for t in 0..b.num_triangles() {
-            assert!(tri_normal(&b, t).dot(centroid(&b, t) - c) > 0.0, "sphere tri {t}");
+            assert!(
+                tri_normal(&b, t).dot(centroid(&b, t) - c) > 0.0,
+                "sphere tri {t}"
+            );
         }
         let mut b = MeshBuilder::new();
         b.cone(c, c + Vec3::Y, 0.3, 0.0, 8, 2, true);
         for t in 0..b.num_triangles() {
             let n = tri_normal(&b, t);
             assert!(n.length() > 0.0, "cone degenerate tri {t}");
-            assert!(n.dot(centroid(&b, t) - (c + Vec3::Y * 0.3)) > 0.0, "cone tri {t}");
+            assert!(
+                n.dot(centroid(&b, t) - (c + Vec3::Y * 0.3)) > 0.0,
+                "cone tri {t}"
+            );
         }
     }
 

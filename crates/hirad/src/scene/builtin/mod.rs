@@ -14,9 +14,12 @@
 //! always gives the same scene. Every generator builds a [`RawScene`] in metres that
 //! [`Scene::from_raw`](super::Scene::from_raw) validates like any file.
 
-mod cornell;
-mod furnace;
+pub mod cornell;
+pub mod furnace;
 pub mod mesh;
+pub mod office;
+pub mod soup;
+pub mod trees;
 
 use super::RawScene;
 use crate::{Error, Result};
@@ -68,7 +71,10 @@ impl BuiltinSpec {
             })
         };
         let size = size.map(|s| num("size", s)).transpose()?;
-        let seed = seed.map(|s| num("seed", s)).transpose()?.unwrap_or(DEFAULT_SEED);
+        let seed = seed
+            .map(|s| num("seed", s))
+            .transpose()?
+            .unwrap_or(DEFAULT_SEED);
         Ok(Some(BuiltinSpec {
             base: base.to_string(),
             size,
@@ -99,6 +105,20 @@ pub fn generate(name: &str) -> Result<Option<RawScene>> {
             size_in(0, 0, 0)?;
             cornell::cornell()
         }
+        "office" => {
+            size_in(0, 0, 0)?;
+            office::office(spec.seed)
+        }
+        "soup" => {
+            let n = spec.size.unwrap_or(soup::DEFAULT_TRIANGLES);
+            if !(1..=50_000_000).contains(&n) {
+                return Err(Error::Config(format!(
+                    "built-in scene '{name}': size {n} outside [1, 50000000]"
+                )));
+            }
+            soup::soup(n, spec.seed)
+        }
+        "trees" => trees::trees(size_in(1, 64, trees::DEFAULT_TREES as u64)?, spec.seed),
         _ => return Ok(None),
     };
     raw.name = name.to_string();
@@ -107,4 +127,41 @@ pub fn generate(name: &str) -> Result<Option<RawScene>> {
         raw.triangles.len()
     );
     Ok(Some(raw))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_sizes_and_seeds() {
+        let p = |s: &str| BuiltinSpec::parse(s).unwrap();
+        assert_eq!(
+            p("soup"),
+            Some(BuiltinSpec {
+                base: "soup".into(),
+                size: None,
+                seed: DEFAULT_SEED
+            })
+        );
+        assert_eq!(
+            p("soup:1000000@42"),
+            Some(BuiltinSpec {
+                base: "soup".into(),
+                size: Some(1_000_000),
+                seed: 42
+            })
+        );
+        assert_eq!(p("trees@7").unwrap().seed, 7);
+        assert_eq!(p("furnace:8").unwrap().size, Some(8));
+        assert_eq!(p("nothing:3"), None);
+        assert_eq!(p("scene.obj"), None);
+        assert!(BuiltinSpec::parse("soup:many").is_err());
+        assert!(BuiltinSpec::parse("soup@-1").is_err());
+        assert!(generate("office:3").is_err());
+        assert!(generate("trees:65").is_err());
+        assert!(generate("soup:0").is_err());
+        let raw = generate("soup:5000@3").unwrap().unwrap();
+        assert_eq!(raw.name, "soup:5000@3");
+    }
 }

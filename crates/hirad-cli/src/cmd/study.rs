@@ -1,0 +1,217 @@
+//! `hirad study SCENE ...`: the paper's experiments end to end (`experiments.md` §1–6), and
+//! `hirad study merge DIR...` to combine results computed on several machines.
+
+use crate::progress::{overall_bar, Bars};
+use crate::Global;
+use hirad::cluster::Strategy;
+use hirad::radiosity::{Oracle, SolverConfig, VisibilityMode};
+use hirad::study::run::{self, Study, StudyConfig};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+#[derive(clap::Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    #[command(subcommand)]
+    pub sub: Option<Sub>,
+    /// Scene: a file path or a built-in name.
+    pub scene: Option<String>,
+    /// Strategies: a comma-separated list or `all`.
+    #[arg(long, default_value = "all")]
+    pub clustering: String,
+    /// Refinement oracle: bf or error.
+    #[arg(long, default_value = "bf")]
+    pub refine: String,
+    /// Number of ε values of the sweep (geometric series of the relative ε, 0: no sweep).
+    #[arg(long, default_value_t = 8)]
+    pub tolerances: usize,
+    /// Explicit relative ε values, comma-separated (overrides --tolerances).
+    #[arg(long, value_delimiter = ',')]
+    pub eps_list: Vec<f64>,
+    /// Largest and smallest relative ε of the series.
+    #[arg(long, default_value_t = 0.2)]
+    pub eps_hi: f64,
+    #[arg(long, default_value_t = 0.002)]
+    pub eps_lo: f64,
+    /// Visibility of the solves: rays or volume (volume also runs the §5 experiment:
+    /// volumetric against exact visibility per strategy).
+    #[arg(long, default_value = "rays")]
+    pub visibility: String,
+    /// Viewpoints by camera name, comma-separated (default: every camera of the scene).
+    #[arg(long, value_delimiter = ',')]
+    pub viewpoints: Vec<String>,
+    /// Image size of the renders, WxH.
+    #[arg(long, default_value = "320x240")]
+    pub size: String,
+    /// Path-tracer samples per pixel of the reference images.
+    #[arg(long, default_value_t = 256)]
+    pub spp: u32,
+    /// Pairs of the ray-casting test (0 skips it).
+    #[arg(long, default_value_t = 100_000)]
+    pub pairs: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Timed builds per strategy (median reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// Surfaces with a back face (polygon soups with inconsistent winding).
+    #[arg(long)]
+    pub two_sided: bool,
+    /// Output directory.
+    #[arg(long, default_value = "hirad-out/study")]
+    pub out: PathBuf,
+    /// Write report.md / report.html (tables, plots, the paper's findings next to ours).
+    #[arg(long)]
+    pub report: bool,
+    /// Print one command per unit of work instead of running (for a batch scheduler); merge
+    /// the output directories afterwards with `hirad study merge`.
+    #[arg(long)]
+    pub jobs: bool,
+    /// Run only the units whose key starts with this (repeatable), e.g. `solve/okdt`.
+    #[arg(long)]
+    pub only: Vec<String>,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum Sub {
+    /// Merge the results of several study directories and write the report.
+    Merge {
+        /// Study directories to merge.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Directory to merge into (default: the first one).
+        #[arg(long)]
+        into: Option<PathBuf>,
+    },
+}
+
+fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| anyhow::anyhow!("--size must be WxH, got '{s}'"))?;
+    let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
+    anyhow::ensure!(w > 0 && h > 0 && w <= 16384 && h <= 16384, "--size {s} out of range");
+    Ok((w, h))
+}
+
+fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
+    let visibility = VisibilityMode::parse(&a.visibility)?;
+    let solver = SolverConfig {
+        refine: Oracle::parse(&a.refine)?,
+        visibility: VisibilityMode::Rays,
+        two_sided: a.two_sided,
+        ..SolverConfig::default()
+    };
+    Ok(StudyConfig {
+        scene: scene.to_string(),
+        strategies: Strategy::parse_list(&a.clustering)?,
+        solver,
+        tolerances: a.tolerances,
+        eps_list: a.eps_list.clone(),
+        eps_hi: a.eps_hi,
+        eps_lo: a.eps_lo,
+        viewpoints: a.viewpoints.clone(),
+        size: parse_size(&a.size)?,
+        reference_spp: a.spp,
+        ray_pairs: a.pairs,
+        seed: a.seed,
+        build_repeats: a.repeat,
+        volume: visibility == VisibilityMode::Volume,
+        out: a.out.clone(),
+        only: a.only.clone(),
+        ..StudyConfig::default()
+    })
+}
+
+fn report(out: &std::path::Path, wall_s: f64, quiet: bool) -> anyhow::Result<()> {
+    let mut d = run::collect(out)?;
+    d.wall_s = wall_s;
+    let files = run::write_outputs(out, &mut d)?;
+    if !quiet {
+        for f in files {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
+    if let Some(Sub::Merge { dirs, into }) = &a.sub {
+        let into = into.clone().unwrap_or_else(|| dirs[0].clone());
+        let n = run::merge(&into, dirs)?;
+        eprintln!("merged {n} results into {}", into.display());
+        return report(&into, 0.0, g.quiet);
+    }
+    let scene = a
+        .scene
+        .clone()
+        .ok_or_else(|| anyhow::anyhow!("a scene is required (or `hirad study merge DIR...`)"))?;
+    let cfg = config(&a, &scene)?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second Ctrl-C while the first is being handled kills the process as usual.
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\ninterrupted: finishing nothing half-written; rerun to resume");
+        });
+    }
+    let multi = indicatif::MultiProgress::new();
+    let bars = Bars::in_multi(g.quiet, multi.clone());
+    let t0 = std::time::Instant::now();
+    let study = Study::new(cfg, &bars, &cancel)?;
+    let jobs = run::plan(&study.scene, &study.cfg)?;
+    if a.jobs {
+        let exe = std::env::args().next().unwrap_or_else(|| "hirad".into());
+        let mut base: Vec<String> = std::env::args().skip(1).filter(|x| x != "--jobs").collect();
+        // Every job writes into its own directory; merge them afterwards.
+        if let Some(i) = base.iter().position(|x| x == "--out") {
+            base.drain(i..(i + 2).min(base.len()));
+        }
+        for (i, j) in jobs.iter().enumerate() {
+            let key = j.key();
+            let dir = a.out.join(format!("job-{i:04}"));
+            println!(
+                "{exe} {} --out {} --only {key} -q",
+                base.join(" "),
+                dir.display()
+            );
+        }
+        eprintln!(
+            "{} jobs; afterwards: {exe} study merge {}/job-* --into {}",
+            jobs.len(),
+            a.out.display(),
+            a.out.display()
+        );
+        return Ok(());
+    }
+    let overall = overall_bar(&multi, g.quiet, jobs.len() as u64, "study");
+    let mut refs: Vec<&run::Job> = jobs.iter().filter(|j| matches!(j, run::Job::Reference(_))).collect();
+    refs.extend(jobs.iter().filter(|j| !matches!(j, run::Job::Reference(_))));
+    for j in refs {
+        overall.set_message(j.key());
+        let r = study.run_job(j);
+        overall.inc(1);
+        if let Err(e) = r {
+            overall.abandon();
+            if matches!(e, hirad::Error::Interrupted) {
+                eprintln!("stopped; finished units are on disk in {}", a.out.display());
+            }
+            return Err(e.into());
+        }
+    }
+    overall.finish_and_clear();
+    let wall = t0.elapsed().as_secs_f64();
+    if a.report || g.json {
+        report(&a.out, wall, g.quiet)?;
+    }
+    if g.json {
+        let d = run::collect(&a.out)?;
+        return super::print_json(&hirad::study::report::findings(&d));
+    }
+    eprintln!("study of {scene} done in {wall:.1} s; results in {}", a.out.display());
+    Ok(())
+}

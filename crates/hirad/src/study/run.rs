@@ -1,0 +1,695 @@
+//! The study driver (`experiments.md` §1–6): plans the units of work of a study, runs the ones
+//! that are not on disk yet, and writes tables, plots and the report.
+//!
+//! Units of work and their keys in the [`Store`]:
+//! - `clusters/<strategy>`: statistics and median build time (§1);
+//! - `raybench/<strategy>`: the ray-casting test (§2);
+//! - `reference/<viewpoint>`: the reference image of a viewpoint (§3), path traced;
+//! - `solve/<strategy>/<eps>`: one solve of the sweep, its images and errors (§4);
+//! - `volume/<strategy>`: volumetric against exact visibility (§5).
+//!
+//! Every unit is written atomically when it completes, so a study that is stopped (Ctrl-C, a
+//! killed job) and started again skips finished units. [`plan`] lists the units so that
+//! `hirad study --jobs` can print one command per unit for a batch scheduler; results of several
+//! output directories are merged with [`merge`].
+//!
+//! The ε sweep: `tolerances` values of the solver's relative threshold `eps_rel`, a geometric
+//! series from `eps_hi` down to `eps_lo` (defaults 0.2 → 0.002, i.e. 10× above to 10× below the
+//! solver's default 0.02); the absolute ε of each solve and the share of energy gathered through
+//! cluster links are recorded so the series can be checked against the paper's 30–100% range.
+
+use super::plot::{strategy_color, BarPlot, LinePlot, Series};
+use super::records::{ClusterRecord, RayRecord, ReferenceRecord, RunMeta, SolveRecord};
+use super::report::{self, ReportData, VolumeRow};
+use super::store::Store;
+use crate::cluster::{stats::ClusterStats, ClusterConfig, ClusterTree, Prims, Strategy};
+use crate::progress::Progress;
+use crate::radiosity::{self, SolverConfig, VisibilityMode};
+use crate::ray::{sample::sample_segments, RayCaster};
+use crate::render::{self, CameraOverrides, CameraView, Image, RasterOptions};
+use crate::scene::{Scene, SceneOptions};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Everything a study needs; serde-able so a study directory records how it was made.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(default)]
+pub struct StudyConfig {
+    /// Scene path or built-in name.
+    pub scene: String,
+    pub strategies: Vec<Strategy>,
+    pub cluster: ClusterConfig,
+    /// Base solver configuration (refinement oracle, visibility, two-sided, ...).
+    pub solver: SolverConfig,
+    /// Number of ε values of the sweep (0: no sweep).
+    pub tolerances: usize,
+    /// Explicit `eps_rel` values (override `tolerances`).
+    pub eps_list: Vec<f64>,
+    pub eps_hi: f64,
+    pub eps_lo: f64,
+    /// Viewpoints by camera name (empty: every camera of the scene).
+    pub viewpoints: Vec<String>,
+    /// Image size of the study's renders.
+    pub size: (u32, u32),
+    pub supersample: u32,
+    /// Path-tracer samples per pixel of the references.
+    pub reference_spp: u32,
+    /// Ray-casting test pairs and seed.
+    pub ray_pairs: usize,
+    pub seed: u64,
+    /// Timed builds per strategy (median reported).
+    pub build_repeats: usize,
+    /// Run the volumetric-visibility experiment (§5).
+    pub volume: bool,
+    pub out: PathBuf,
+    /// Run only the units whose key starts with one of these (empty: all).
+    pub only: Vec<String>,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        StudyConfig {
+            scene: "office".into(),
+            strategies: Strategy::ALL.to_vec(),
+            cluster: ClusterConfig::default(),
+            solver: SolverConfig::default(),
+            tolerances: 8,
+            eps_list: Vec::new(),
+            eps_hi: 0.2,
+            eps_lo: 0.002,
+            viewpoints: Vec::new(),
+            size: (320, 240),
+            supersample: 2,
+            reference_spp: 256,
+            ray_pairs: 100_000,
+            seed: 1,
+            build_repeats: 5,
+            volume: false,
+            out: PathBuf::from("hirad-out/study"),
+            only: Vec::new(),
+        }
+    }
+}
+
+/// One unit of work.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Job {
+    Clusters(Strategy),
+    Raybench(Strategy),
+    Reference(String),
+    Solve(Strategy, f64),
+    Volume(Strategy),
+}
+
+/// Format an ε so that it is a stable key.
+pub fn eps_key(eps: f64) -> String {
+    format!("eps-{eps:.4e}")
+}
+
+impl Job {
+    /// The unit's key in the store.
+    pub fn key(&self) -> String {
+        match self {
+            Job::Clusters(s) => format!("clusters/{s}"),
+            Job::Raybench(s) => format!("raybench/{s}"),
+            Job::Reference(v) => format!("reference/{v}"),
+            Job::Solve(s, e) => format!("solve/{s}/{}", eps_key(*e)),
+            Job::Volume(s) => format!("volume/{s}"),
+        }
+    }
+}
+
+impl StudyConfig {
+    /// The `eps_rel` values of the sweep, largest first.
+    pub fn eps_values(&self) -> Vec<f64> {
+        let mut v = if !self.eps_list.is_empty() {
+            self.eps_list.clone()
+        } else if self.tolerances == 0 {
+            Vec::new()
+        } else if self.tolerances == 1 {
+            vec![self.eps_hi]
+        } else {
+            let n = self.tolerances;
+            let r = (self.eps_lo / self.eps_hi).powf(1.0 / (n - 1) as f64);
+            (0..n).map(|i| self.eps_hi * r.powi(i as i32)).collect()
+        };
+        v.sort_by(|a, b| b.total_cmp(a));
+        v
+    }
+
+    fn selected(&self, key: &str) -> bool {
+        self.only.is_empty() || self.only.iter().any(|p| key.starts_with(p.as_str()))
+    }
+}
+
+/// Viewpoints of the study (name, view): the named cameras, or every camera of the scene, at
+/// the study's image size.
+pub fn viewpoints(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<(String, CameraView)>> {
+    let cams: Vec<_> = if cfg.viewpoints.is_empty() {
+        scene.cameras.clone()
+    } else {
+        cfg.viewpoints
+            .iter()
+            .map(|n| {
+                scene.cameras.iter().find(|c| &c.name == n).cloned().ok_or_else(|| {
+                    Error::Config(format!(
+                        "scene has no viewpoint '{n}' (has: {})",
+                        scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
+                    ))
+                })
+            })
+            .collect::<Result<_>>()?
+    };
+    let cams = if cams.is_empty() { vec![scene.default_camera()] } else { cams };
+    let o = CameraOverrides {
+        size: Some(cfg.size),
+        ..Default::default()
+    };
+    cams.iter()
+        .map(|c| Ok((c.name.clone(), CameraView::with_overrides(c, &o)?)))
+        .collect()
+}
+
+/// The units of a study, in the order they run.
+pub fn plan(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<Job>> {
+    let mut jobs = Vec::new();
+    for &s in &cfg.strategies {
+        jobs.push(Job::Clusters(s));
+    }
+    if cfg.ray_pairs > 0 {
+        for &s in &cfg.strategies {
+            jobs.push(Job::Raybench(s));
+        }
+    }
+    let eps = cfg.eps_values();
+    if !eps.is_empty() {
+        for (name, _) in viewpoints(scene, cfg)? {
+            jobs.push(Job::Reference(name));
+        }
+        for &s in &cfg.strategies {
+            for &e in &eps {
+                jobs.push(Job::Solve(s, e));
+            }
+        }
+    }
+    if cfg.volume {
+        for &s in &cfg.strategies {
+            jobs.push(Job::Volume(s));
+        }
+    }
+    Ok(jobs.into_iter().filter(|j| cfg.selected(&j.key())).collect())
+}
+
+/// A study in progress: the scene, its prepared inputs and the store.
+pub struct Study<'a> {
+    pub cfg: StudyConfig,
+    pub scene: Scene,
+    pub prims: Prims,
+    pub views: Vec<(String, CameraView)>,
+    pub store: Store,
+    pub meta: RunMeta,
+    progress: &'a dyn Progress,
+    cancel: &'a AtomicBool,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+impl<'a> Study<'a> {
+    /// Load the scene and prepare a study.
+    pub fn new(cfg: StudyConfig, progress: &'a dyn Progress, cancel: &'a AtomicBool) -> Result<Self> {
+        let scene = Scene::load(&cfg.scene, &SceneOptions::default())?;
+        let prims = Prims::from_scene(&scene);
+        let views = viewpoints(&scene, &cfg)?;
+        let store = Store::new(&cfg.out);
+        let meta = RunMeta::current(&cfg.scene);
+        store.put("config", &cfg)?;
+        Ok(Study {
+            cfg,
+            scene,
+            prims,
+            views,
+            store,
+            meta,
+            progress,
+            cancel,
+        })
+    }
+
+    fn check_cancel(&self) -> Result<()> {
+        if self.cancel.load(Ordering::Relaxed) {
+            Err(Error::Interrupted)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn tree(&self, s: Strategy) -> ClusterTree {
+        ClusterTree::build_prims(&self.prims, s, &self.cfg.cluster)
+    }
+
+    /// Run one unit (or load it when it is on disk).
+    pub fn run_job(&self, job: &Job) -> Result<()> {
+        self.check_cancel()?;
+        let key = job.key();
+        if self.store.has(&key) {
+            tracing::info!("{key}: done earlier, skipped");
+            return Ok(());
+        }
+        self.progress.message(&key);
+        match job {
+            Job::Clusters(s) => {
+                let r = self.cluster_record(*s)?;
+                self.store.put(&key, &r)
+            }
+            Job::Raybench(s) => {
+                let r = self.ray_record(*s)?;
+                self.store.put(&key, &r)
+            }
+            Job::Reference(v) => {
+                let r = self.reference(v)?;
+                self.store.put(&key, &r)
+            }
+            Job::Solve(s, e) => {
+                let r = self.solve_record(*s, *e)?;
+                self.store.put(&key, &r)
+            }
+            Job::Volume(s) => {
+                let r = self.volume_row(*s)?;
+                self.store.put(&key, &r)
+            }
+        }
+    }
+
+    fn cluster_record(&self, s: Strategy) -> Result<ClusterRecord> {
+        let mut times = Vec::new();
+        let mut tree = None;
+        for _ in 0..self.cfg.build_repeats.max(1) {
+            let t = Instant::now();
+            let tr = self.tree(s);
+            times.push(ms(t));
+            tree = Some(tr);
+        }
+        let tree = tree.expect("at least one build");
+        let st = ClusterStats::compute(&tree, &self.prims);
+        Ok(ClusterRecord {
+            meta: self.meta.clone(),
+            strategy: s,
+            clusters: st.clusters,
+            depth_max: st.depth_max as usize,
+            depth_mean: st.depth_mean,
+            avg_surfaces: st.surfaces_per_cluster_avg,
+            avg_children: st.children_per_cluster_avg,
+            branching: st.branching_factor,
+            overlap: st.overlap,
+            empty_space: st.empty_space_ratio,
+            tree_bytes: tree.memory_bytes(),
+            build_ms: median(times),
+        })
+    }
+
+    fn ray_record(&self, s: Strategy) -> Result<RayRecord> {
+        let segs = sample_segments(&self.scene, self.cfg.ray_pairs, self.cfg.seed);
+        let t = Instant::now();
+        let tree = self.tree(s);
+        let caster = RayCaster::new(&self.scene, &tree);
+        let build_ms = ms(t);
+        let t = Instant::now();
+        let occluded = caster.count_occluded(&segs);
+        let query_ms = ms(t);
+        let (_, stats) = caster.occluded_batch_stats(&segs);
+        Ok(RayRecord {
+            meta: self.meta.clone(),
+            strategy: s,
+            pairs: segs.len(),
+            seed: self.cfg.seed,
+            build_ms,
+            query_ms,
+            mrays_per_s: segs.len() as f64 / (query_ms * 1e3).max(1e-12),
+            occluded: occluded as usize,
+            nodes_per_ray: stats.nodes_per_ray(),
+            tris_per_ray: stats.tris_per_ray(),
+        })
+    }
+
+    fn view(&self, name: &str) -> Result<&CameraView> {
+        self.views
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v)
+            .ok_or_else(|| Error::Config(format!("no viewpoint '{name}'")))
+    }
+
+    fn reference_path(&self, name: &str) -> PathBuf {
+        self.cfg.out.join("reference").join(format!("{name}.exr"))
+    }
+
+    fn reference(&self, name: &str) -> Result<ReferenceRecord> {
+        let view = self.view(name)?;
+        let tree = self.tree(Strategy::Sah);
+        let caster = RayCaster::new(&self.scene, &tree);
+        let t = Instant::now();
+        let opts = render::pathtrace::ReferenceOptions {
+            spp: self.cfg.reference_spp,
+            seed: self.cfg.seed,
+            two_sided: self.cfg.solver.two_sided,
+            ..Default::default()
+        };
+        let (img, _) =
+            render::pathtrace::render_reference(&self.scene, &caster, view, &opts, self.progress)?;
+        let seconds = t.elapsed().as_secs_f64();
+        let path = self.reference_path(name);
+        img.write_exr(&path)?;
+        img.write_png(&path.with_extension("png"), 0.0)?;
+        Ok(ReferenceRecord {
+            meta: self.meta.clone(),
+            viewpoint: name.to_string(),
+            method: format!("path tracer, {} spp", self.cfg.reference_spp),
+            seconds,
+            image: format!("reference/{name}.png"),
+        })
+    }
+
+    fn render_views(&self, sol: &radiosity::Solution, dir: &str) -> Result<Vec<(String, Image)>> {
+        let mesh = radiosity::output::radiosity_mesh(sol, &self.scene, false);
+        let opts = RasterOptions {
+            supersample: self.cfg.supersample,
+            ..Default::default()
+        };
+        let mut out = Vec::new();
+        for (name, view) in &self.views {
+            let img = render::render_solution(&mesh, view, &opts)?;
+            let rel = format!("{dir}/{name}.png");
+            img.write_png(&self.cfg.out.join(&rel), 0.0)?;
+            out.push((rel, img));
+        }
+        Ok(out)
+    }
+
+    fn solve_with(&self, s: Strategy, solver: &SolverConfig) -> Result<(radiosity::Solution, f64)> {
+        let tree = self.tree(s);
+        let t = Instant::now();
+        let sol = radiosity::solve_cancellable(&self.scene, &tree, solver, self.progress, self.cancel)?;
+        Ok((sol, t.elapsed().as_secs_f64()))
+    }
+
+    fn solve_record(&self, s: Strategy, eps_rel: f64) -> Result<SolveRecord> {
+        let solver = SolverConfig {
+            eps_rel,
+            eps: None,
+            ..self.cfg.solver.clone()
+        };
+        let (sol, solve_s) = self.solve_with(s, &solver)?;
+        let dir = format!("solve/{s}/{}", eps_key(eps_rel));
+        let imgs = self.render_views(&sol, &dir)?;
+        let mut errors = Vec::new();
+        for ((name, _), (_, img)) in self.views.iter().zip(&imgs) {
+            let reference = Image::read(&self.reference_path(name))?;
+            errors.push(crate::metrics::compare(img, &reference)?.rms_delta_e);
+        }
+        let st = &sol.stats;
+        Ok(SolveRecord {
+            meta: self.meta.clone(),
+            strategy: s,
+            refine: solver.refine.name().to_string(),
+            visibility: solver.visibility.name().to_string(),
+            eps: eps_rel,
+            solve_s,
+            elements: st.elements,
+            links: st.links,
+            cluster_energy_pct: st.cluster_energy_percent,
+            errors,
+            images: imgs.into_iter().map(|(r, _)| r).collect(),
+        })
+    }
+
+    fn volume_row(&self, s: Strategy) -> Result<VolumeRow> {
+        let exact_cfg = SolverConfig {
+            visibility: VisibilityMode::Rays,
+            ..self.cfg.solver.clone()
+        };
+        let vol_cfg = SolverConfig {
+            visibility: VisibilityMode::Volume,
+            ..self.cfg.solver.clone()
+        };
+        let (exact, exact_s) = self.solve_with(s, &exact_cfg)?;
+        let exact_imgs = self.render_views(&exact, &format!("volume/{s}/exact"))?;
+        let (vol, volume_s) = self.solve_with(s, &vol_cfg)?;
+        let vol_imgs = self.render_views(&vol, &format!("volume/{s}/volume"))?;
+        let mut err = 0.0;
+        for ((_, a), (_, b)) in vol_imgs.iter().zip(&exact_imgs) {
+            err += crate::metrics::compare(a, b)?.rms_delta_e;
+        }
+        Ok(VolumeRow {
+            strategy: s,
+            volume_s,
+            exact_s,
+            error: err / vol_imgs.len().max(1) as f64,
+            image: vol_imgs.first().map(|(r, _)| r.clone()).unwrap_or_default(),
+        })
+    }
+
+    /// Run every planned unit that is not done yet; the overall progress bar counts units.
+    pub fn run_all(&self) -> Result<()> {
+        let jobs = plan(&self.scene, &self.cfg)?;
+        // References first: solves compare against them.
+        let (refs, rest): (Vec<Job>, Vec<Job>) =
+            jobs.into_iter().partition(|j| matches!(j, Job::Reference(_)));
+        for j in refs.iter().chain(rest.iter()) {
+            self.run_job(j)?;
+        }
+        Ok(())
+    }
+}
+
+/// Collect every record in a study directory into the report's data.
+pub fn collect(out: &std::path::Path) -> Result<ReportData> {
+    let store = Store::new(out);
+    let cfg: StudyConfig = store.get("config").unwrap_or_default();
+    let mut d = ReportData {
+        meta: RunMeta::current(&cfg.scene),
+        ..Default::default()
+    };
+    let order = |s: Strategy| Strategy::ALL.iter().position(|&x| x == s).unwrap_or(99);
+    for k in store.keys("clusters") {
+        if let Some(r) = store.get::<ClusterRecord>(&k) {
+            d.meta = r.meta.clone();
+            d.clusters.push(r);
+        }
+    }
+    d.clusters.sort_by_key(|r| order(r.strategy));
+    for k in store.keys("raybench") {
+        if let Some(r) = store.get::<RayRecord>(&k) {
+            d.rays.push(r);
+        }
+    }
+    d.rays.sort_by_key(|r| order(r.strategy));
+    for k in store.keys("solve") {
+        if let Some(r) = store.get::<SolveRecord>(&k) {
+            d.solves.push(r);
+        }
+    }
+    for k in store.keys("volume") {
+        if let Some(r) = store.get::<VolumeRow>(&k) {
+            d.volume.push(r);
+        }
+    }
+    d.volume.sort_by_key(|r| order(r.strategy));
+    Ok(d)
+}
+
+/// Write CSV tables, plots, `report.md` and `report.html` for a study directory.
+pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let plots = out.join("plots");
+    // Fig. 6: clusters, children per cluster, ray-casting time per strategy.
+    if !d.clusters.is_empty() {
+        let bars = |title: &str, y: &str, f: &dyn Fn(&ClusterRecord) -> f64| BarPlot {
+            title: title.into(),
+            y_label: y.into(),
+            bars: d
+                .clusters
+                .iter()
+                .map(|r| (r.strategy.to_string(), strategy_color(r.strategy), f(r)))
+                .collect(),
+        };
+        let f1 = bars("Clusters per strategy", "clusters", &|r| r.clusters as f64).write(&plots.join("clusters"))?;
+        let f2 = bars("Children per cluster", "children / cluster", &|r| r.avg_children).write(&plots.join("children"))?;
+        d.figures.insert("clusters".into(), rel(out, &f1));
+        d.figures.insert("children".into(), rel(out, &f2));
+        files.extend(f1);
+        files.extend(f2);
+    }
+    if !d.rays.is_empty() {
+        let f = BarPlot {
+            title: "Ray-casting test: query time".into(),
+            y_label: "query time (ms)".into(),
+            bars: d
+                .rays
+                .iter()
+                .map(|r| (r.strategy.to_string(), strategy_color(r.strategy), r.query_ms))
+                .collect(),
+        }
+        .write(&plots.join("raytime"))?;
+        d.figures.insert("raytime".into(), rel(out, &f));
+        files.extend(f);
+    }
+    if !d.solves.is_empty() {
+        let curves = report::curves(&d.solves);
+        let series = |f: &dyn Fn(&SolveRecord) -> (f64, f64)| -> Vec<Series> {
+            curves
+                .iter()
+                .map(|(s, v)| Series {
+                    name: s.to_string(),
+                    color: strategy_color(*s),
+                    points: v.iter().map(|r| f(r)).collect(),
+                })
+                .collect()
+        };
+        let f2 = LinePlot {
+            title: format!("Time vs error ({})", d.meta.scene),
+            x_label: "solve time (s)".into(),
+            y_label: "RMS ΔE*uv".into(),
+            log_x: true,
+            log_y: true,
+            series: series(&|r| (r.solve_s, r.error())),
+        }
+        .write(&plots.join("time_error"))?;
+        let f3 = LinePlot {
+            title: format!("Error vs ε ({})", d.meta.scene),
+            x_label: "ε (relative)".into(),
+            y_label: "RMS ΔE*uv".into(),
+            log_x: true,
+            log_y: false,
+            series: series(&|r| (r.eps, r.error())),
+        }
+        .write(&plots.join("error_eps"))?;
+        d.figures.insert("time_error".into(), rel(out, &f2));
+        d.figures.insert("error_eps".into(), rel(out, &f3));
+        files.extend(f2);
+        files.extend(f3);
+    }
+    // CSV tables.
+    let mut csv = String::from("scene,strategy,refine,visibility,eps_rel,solve_s,elements,links,cluster_energy_pct,rms_delta_e\n");
+    for r in &d.solves {
+        csv.push_str(&format!(
+            "{},{},{},{},{:e},{:.6},{},{},{:.3},{:.6}\n",
+            d.meta.scene, r.strategy, r.refine, r.visibility, r.eps, r.solve_s, r.elements, r.links, r.cluster_energy_pct, r.error()
+        ));
+    }
+    let p = out.join("sweep.csv");
+    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
+    files.push(p);
+    let mut csv = String::from("scene,strategy,clusters,depth_max,depth_mean,avg_surfaces,avg_children,branching,overlap,empty_space,tree_bytes,build_ms\n");
+    for r in &d.clusters {
+        csv.push_str(&format!(
+            "{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{},{:.4}\n",
+            d.meta.scene, r.strategy, r.clusters, r.depth_max, r.depth_mean, r.avg_surfaces, r.avg_children, r.branching, r.overlap, r.empty_space, r.tree_bytes, r.build_ms
+        ));
+    }
+    let p = out.join("clusters.csv");
+    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
+    files.push(p);
+    let mut csv = String::from("scene,strategy,pairs,seed,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray\n");
+    for r in &d.rays {
+        csv.push_str(&format!(
+            "{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}\n",
+            d.meta.scene, r.strategy, r.pairs, r.seed, r.build_ms, r.query_ms, r.mrays_per_s, r.occluded, r.nodes_per_ray, r.tris_per_ray
+        ));
+    }
+    let p = out.join("raybench.csv");
+    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
+    files.push(p);
+    let md = report::markdown(d);
+    let p = out.join("report.md");
+    crate::io::write_bytes_atomic(&p, md.as_bytes())?;
+    files.push(p);
+    let p = out.join("report.html");
+    crate::io::write_bytes_atomic(&p, report::html(&md, &format!("hirad study: {}", d.meta.scene)).as_bytes())?;
+    files.push(p);
+    let p = out.join("results.json");
+    crate::io::write_json_atomic(
+        &p,
+        &serde_json::json!({
+            "meta": d.meta, "clusters": d.clusters, "raybench": d.rays, "solves": d.solves,
+            "volume": d.volume, "findings": report::findings(d),
+            "monotonicity": report::monotonicity(&d.solves).into_iter().map(|(s, m)| (s.to_string(), m)).collect::<std::collections::BTreeMap<_, _>>(),
+        }),
+    )?;
+    files.push(p);
+    Ok(files)
+}
+
+fn rel(base: &std::path::Path, files: &[PathBuf]) -> Vec<String> {
+    files
+        .iter()
+        .map(|f| f.strip_prefix(base).unwrap_or(f).to_string_lossy().replace('\\', "/"))
+        .collect()
+}
+
+/// Merge the stores of several study directories into `into` (files already there are kept).
+pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
+    let mut copied = 0;
+    for d in dirs {
+        let src = Store::new(d);
+        for prefix in ["clusters", "raybench", "reference", "solve", "volume"] {
+            for k in src.keys(prefix) {
+                let from = src.path(&k);
+                let to = Store::new(into).path(&k);
+                if to.exists() {
+                    continue;
+                }
+                let bytes = std::fs::read(&from).map_err(|e| Error::io(&from, e))?;
+                crate::io::write_bytes_atomic(&to, &bytes)?;
+                copied += 1;
+            }
+        }
+        // Images and references next to the records.
+        copy_tree(d, into, &["png", "exr", "svg"])?;
+        if !into.join("config.json").exists() && d.join("config.json").exists() {
+            let bytes = std::fs::read(d.join("config.json")).map_err(|e| Error::io(d, e))?;
+            crate::io::write_bytes_atomic(&into.join("config.json"), &bytes)?;
+        }
+    }
+    Ok(copied)
+}
+
+fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Result<()> {
+    let mut stack = vec![from.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(rd) = std::fs::read_dir(&d) else { continue };
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                if p.file_name().is_some_and(|n| n != "plots") {
+                    stack.push(p);
+                }
+            } else if p.extension().is_some_and(|x| exts.iter().any(|e| x == *e)) {
+                let Ok(r) = p.strip_prefix(from) else { continue };
+                let dst = to.join(r);
+                if !dst.exists() {
+                    let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
+                    crate::io::write_bytes_atomic(&dst, &bytes)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
