@@ -63,7 +63,9 @@ impl Progress for Bars {
             b
         } else {
             let b = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr());
-            b.set_style(ProgressStyle::with_template("{prefix:>12} {spinner} {msg} ({elapsed})").unwrap());
+            b.set_style(
+                ProgressStyle::with_template("{prefix:>12} {spinner} {msg} ({elapsed})").unwrap(),
+            );
             b
         };
         let bar = match &self.multi {

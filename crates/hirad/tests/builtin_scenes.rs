@@ -415,3 +415,33 @@ fn trees_have_sun_sky_leaves_and_ground() {
     assert_eq!(three.objects.len(), 4);
     assert!(Scene::load("trees:0", &SceneOptions::default()).is_err());
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(6))]
+
+    /// Any size and seed: about the requested count, nothing degenerate, one object, valid.
+    #[test]
+    fn soup_of_any_size_and_seed(n in 4_000u64..150_000, seed in 0u64..1_000_000) {
+        let s = load(&format!("soup:{n}@{seed}"));
+        let got = s.num_triangles() as f64;
+        proptest::prop_assert!((got / n as f64 - 1.0).abs() < 0.05, "{} for {}", got, n);
+        proptest::prop_assert_eq!(s.report.degenerate_dropped, 0);
+        proptest::prop_assert_eq!(s.objects.len(), 1);
+        proptest::prop_assert!(!s.emitters().is_empty());
+    }
+
+    /// Any seed: office and trees keep their structure and have no degenerate triangles.
+    #[test]
+    fn office_and_trees_of_any_seed(seed in 0u64..1_000_000, n in 1u32..10) {
+        let o = load(&format!("office@{seed}"));
+        proptest::prop_assert!((5_000..=10_000).contains(&o.num_triangles()));
+        proptest::prop_assert_eq!(o.report.degenerate_dropped, 0);
+        proptest::prop_assert_eq!(o.emitters().len(), 12);
+        let t = load(&format!("trees:{n}@{seed}"));
+        proptest::prop_assert_eq!(t.report.degenerate_dropped, 0);
+        proptest::prop_assert_eq!(t.objects.len(), n as usize + 1);
+        let leaves = 2 * n as usize * hirad::scene::builtin::trees::LEAVES_PER_TREE as usize;
+        proptest::prop_assert!(t.num_triangles() > leaves + 2 * 80 * 80);
+        proptest::prop_assert!(t.bbox.min.y > -1e-4);
+    }
+}

@@ -293,6 +293,26 @@ fn check_all(tris: &[[Vec3; 3]], lambda: f32) -> Result<(), TestCaseError> {
         let stats = ClusterStats::compute(&t, &prims);
         prop_assert_eq!(stats.clusters, t.nodes.len());
         prop_assert!(stats.depth_mean <= stats.depth_max as f64);
+        // Averages are over clusters with surfaces / with children respectively.
+        let with_surf = t.nodes.iter().filter(|n| n.num_surfaces > 0).count() as f64;
+        let inner = t.nodes.iter().filter(|n| n.num_children > 0).count() as f64;
+        prop_assert!(
+            (stats.surfaces_per_cluster_avg * with_surf - prims.len() as f64).abs() < 1e-6
+        );
+        prop_assert!(
+            (stats.children_per_cluster_avg * inner - (t.nodes.len() - 1) as f64).abs() < 1e-6
+        );
+        prop_assert!(
+            (stats.branching_factor * inner
+                - (t.nodes.len() - 1) as f64
+                - t.nodes
+                    .iter()
+                    .filter(|n| n.num_children > 0)
+                    .map(|n| n.num_surfaces as f64)
+                    .sum::<f64>())
+            .abs()
+                < 1e-6
+        );
         match s {
             Strategy::Okdt => {
                 prop_assert!(t.nodes.iter().all(|n| n.num_children <= 2));

@@ -2,6 +2,7 @@
 
 pub mod clusters;
 pub mod diff;
+pub mod image_args;
 pub mod info;
 pub mod raybench;
 pub mod reference;

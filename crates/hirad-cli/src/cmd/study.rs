@@ -29,11 +29,12 @@ pub struct Args {
     /// Explicit relative ε values, comma-separated (overrides --tolerances).
     #[arg(long, value_delimiter = ',')]
     pub eps_list: Vec<f64>,
-    /// Largest and smallest relative ε of the series.
-    #[arg(long, default_value_t = 0.2)]
-    pub eps_hi: f64,
-    #[arg(long, default_value_t = 0.002)]
-    pub eps_lo: f64,
+    /// Largest and smallest relative ε of the series; without them the range is calibrated by
+    /// probe solves so that 30–100% of the energy goes through cluster links.
+    #[arg(long)]
+    pub eps_hi: Option<f64>,
+    #[arg(long)]
+    pub eps_lo: Option<f64>,
     /// Visibility of the solves: rays or volume (volume also runs the §5 experiment:
     /// volumetric against exact visibility per strategy).
     #[arg(long, default_value = "rays")]
@@ -91,7 +92,10 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
         .split_once(['x', 'X'])
         .ok_or_else(|| anyhow::anyhow!("--size must be WxH, got '{s}'"))?;
     let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
-    anyhow::ensure!(w > 0 && h > 0 && w <= 16384 && h <= 16384, "--size {s} out of range");
+    anyhow::ensure!(
+        w > 0 && h > 0 && w <= 16384 && h <= 16384,
+        "--size {s} out of range"
+    );
     Ok((w, h))
 }
 
@@ -109,8 +113,9 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         solver,
         tolerances: a.tolerances,
         eps_list: a.eps_list.clone(),
-        eps_hi: a.eps_hi,
-        eps_lo: a.eps_lo,
+        eps_hi: a.eps_hi.unwrap_or(0.2),
+        eps_lo: a.eps_lo.unwrap_or(0.002),
+        eps_auto: a.eps_hi.is_none() && a.eps_lo.is_none(),
         viewpoints: a.viewpoints.clone(),
         size: parse_size(&a.size)?,
         reference_spp: a.spp,
@@ -163,10 +168,16 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let bars = Bars::in_multi(g.quiet, multi.clone());
     let t0 = std::time::Instant::now();
     let study = Study::new(cfg, &bars, &cancel)?;
-    let jobs = run::plan(&study.scene, &study.cfg)?;
     if a.jobs {
+        // The ε series is fixed here (calibrating if needed) and passed to every job.
+        let eps = study.eps()?;
+        let jobs = study.plan()?;
         let exe = std::env::args().next().unwrap_or_else(|| "hirad".into());
         let mut base: Vec<String> = std::env::args().skip(1).filter(|x| x != "--jobs").collect();
+        if !eps.is_empty() && a.eps_list.is_empty() {
+            let list: Vec<String> = eps.iter().map(|e| format!("{e:e}")).collect();
+            base.push(format!("--eps-list {}", list.join(",")));
+        }
         // Every job writes into its own directory; merge them afterwards.
         if let Some(i) = base.iter().position(|x| x == "--out") {
             base.drain(i..(i + 2).min(base.len()));
@@ -174,8 +185,13 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         for (i, j) in jobs.iter().enumerate() {
             let key = j.key();
             let dir = a.out.join(format!("job-{i:04}"));
+            let quiet = if base.iter().any(|x| x == "-q" || x == "--quiet") {
+                ""
+            } else {
+                " -q"
+            };
             println!(
-                "{exe} {} --out {} --only {key} -q",
+                "{exe} {} --out {} --only {key}{quiet}",
                 base.join(" "),
                 dir.display()
             );
@@ -188,8 +204,12 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+    let jobs = study.plan()?;
     let overall = overall_bar(&multi, g.quiet, jobs.len() as u64, "study");
-    let mut refs: Vec<&run::Job> = jobs.iter().filter(|j| matches!(j, run::Job::Reference(_))).collect();
+    let mut refs: Vec<&run::Job> = jobs
+        .iter()
+        .filter(|j| matches!(j, run::Job::Reference(_)))
+        .collect();
     refs.extend(jobs.iter().filter(|j| !matches!(j, run::Job::Reference(_))));
     for j in refs {
         overall.set_message(j.key());
@@ -212,6 +232,11 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         let d = run::collect(&a.out)?;
         return super::print_json(&hirad::study::report::findings(&d));
     }
-    eprintln!("study of {scene} done in {wall:.1} s; results in {}", a.out.display());
+    if !g.quiet {
+        eprintln!(
+            "study of {scene} done in {wall:.1} s; results in {}",
+            a.out.display()
+        );
+    }
     Ok(())
 }

@@ -19,12 +19,13 @@ pub struct ClusterStats {
     pub depth_max: u32,
     /// Mean over surfaces of the depth of the node each surface is attached to.
     pub depth_mean: f64,
-    /// Mean number of surfaces attached directly, over clusters with at least one child
-    /// cluster or surface (every cluster of a valid tree of a non-empty scene).
+    /// Mean number of surfaces attached directly, over the clusters that have at least one
+    /// surface attached (clusters without surfaces would only dilute the figure).
     pub surfaces_per_cluster_avg: f64,
     /// Largest number of surfaces attached directly to one cluster.
     pub surfaces_per_cluster_max: u32,
-    /// Mean number of child clusters, over the same clusters as `surfaces_per_cluster_avg`.
+    /// Mean number of child clusters, over the clusters that have at least one child cluster
+    /// (averaged over every cluster it would be (clusters − 1)/clusters ≈ 1 for any tree).
     pub children_per_cluster_avg: f64,
     /// Largest number of child clusters of one cluster.
     pub children_per_cluster_max: u32,
@@ -57,7 +58,7 @@ impl ClusterStats {
         let nodes = &tree.nodes;
         let mut leaves = 0usize;
         let mut depth_max = 0u32;
-        let mut counted = 0usize;
+        let (mut with_surf, mut with_child) = (0usize, 0usize);
         let (mut sum_surf, mut sum_child) = (0u64, 0u64);
         let (mut max_surf, mut max_child) = (0u32, 0u32);
         let (mut inner, mut sum_branch) = (0usize, 0u64);
@@ -76,9 +77,12 @@ impl ClusterStats {
                 sum_branch += (n.num_children + n.num_surfaces) as u64;
                 overlap += sibling_overlap(tree, n, &mut pairs);
             }
-            if n.num_children + n.num_surfaces > 0 {
-                counted += 1;
+            if n.num_surfaces > 0 {
+                with_surf += 1;
                 sum_surf += n.num_surfaces as u64;
+            }
+            if n.num_children > 0 {
+                with_child += 1;
                 sum_child += n.num_children as u64;
             }
             max_surf = max_surf.max(n.num_surfaces);
@@ -101,9 +105,9 @@ impl ClusterStats {
             leaves,
             depth_max,
             depth_mean: mean(depth_sum, ns),
-            surfaces_per_cluster_avg: mean(sum_surf as f64, counted),
+            surfaces_per_cluster_avg: mean(sum_surf as f64, with_surf),
             surfaces_per_cluster_max: max_surf,
-            children_per_cluster_avg: mean(sum_child as f64, counted),
+            children_per_cluster_avg: mean(sum_child as f64, with_child),
             children_per_cluster_max: max_child,
             branching_factor: mean(sum_branch as f64, inner),
             overlap,
@@ -170,7 +174,7 @@ mod tests {
         assert!((s.depth_mean - 4.0 / 6.0).abs() < 1e-12);
         assert_eq!(s.surfaces_per_cluster_avg, 2.0);
         assert_eq!(s.surfaces_per_cluster_max, 2);
-        assert!((s.children_per_cluster_avg - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(s.children_per_cluster_avg, 2.0);
         assert_eq!(s.children_per_cluster_max, 2);
         // Root: 2 children + 2 surfaces.
         assert_eq!(s.branching_factor, 4.0);
@@ -247,7 +251,7 @@ mod tests {
         );
         assert_eq!(s.branching_factor, 5.0);
         assert_eq!(s.children_per_cluster_max, 4);
-        assert!((s.children_per_cluster_avg - 4.0 / 5.0).abs() < 1e-12);
+        assert_eq!(s.children_per_cluster_avg, 4.0);
         assert_eq!(s.surfaces_per_cluster_avg, 1.0);
     }
 }

@@ -26,6 +26,7 @@ use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::mem::MaybeUninit;
 use watertight::{intersect, RayPre, TriVerts};
 
 /// A ray hit.
@@ -106,32 +107,41 @@ impl RayStats {
     }
 }
 
-/// A node of the traversal layout.
-#[derive(Clone, Copy, Debug, Default)]
-struct FlatNode {
-    /// Range of the node's triangles in [`Layout::tris`].
+/// What the traversal needs to visit a node: where its child entries and its triangles are.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
+struct NodeRef {
+    /// First entry of the node's children in [`Layout::children`].
+    first_child: u32,
+    num_children: u32,
+    /// First of the node's triangles in [`Layout::tris`].
     tri_start: u32,
-    tri_end: u32,
-    /// Range of the node's child slots in [`Layout::child_box`] / [`Layout::child_node`].
-    child_start: u32,
-    child_end: u32,
+    num_tris: u32,
 }
 
-/// Traversal layout of a cluster tree (depth-first pre-order).
+/// A child entry, stored in its parent's contiguous block: the child's box and how to visit
+/// it (40 bytes), so that visiting a node reads one block of children and one run of
+/// triangles.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+struct Child {
+    /// `[minx, miny, minz, maxx, maxy, maxz]`.
+    b: [f32; 6],
+    node: NodeRef,
+}
+
+/// Traversal layout of a cluster tree: nodes in depth-first pre-order (children in tree
+/// order); the children blocks and triangle runs of the nodes are stored in that order.
 #[derive(Clone, Debug, Default)]
 struct Layout {
-    nodes: Vec<FlatNode>,
-    /// Box of the root, `[minx, miny, minz, maxx, maxy, maxz]`.
-    root_box: [f32; 6],
-    /// Boxes of the child slots.
-    child_box: Vec<[f32; 6]>,
-    /// Layout index of the node of each child slot.
-    child_node: Vec<u32>,
+    /// The root as a child entry (its box is tested first); `None` for a tree without nodes.
+    root: Option<Child>,
+    children: Vec<Child>,
     /// Triangle corners in node order.
     tris: Vec<TriVerts>,
     /// Scene triangle id of each entry of `tris`.
     tri_id: Vec<u32>,
-    /// Layout index → tree node id.
+    /// Pre-order position → tree node id.
     tree_id: Vec<u32>,
 }
 
@@ -145,62 +155,72 @@ impl Layout {
         if n == 0 {
             return Layout::default();
         }
-        // Depth-first pre-order, children in their tree order.
+        let nt = scene.num_triangles() as u32;
+        // Children of a node that the layout follows: valid ids greater than the parent's
+        // (true of every laid-out tree; guarantees termination on malformed input).
+        let kids = |id: u32| {
+            tree.nodes[id as usize]
+                .children()
+                .filter(move |&c| (c as usize) < n && c > id)
+        };
+        let surfs = |id: u32| {
+            let node = &tree.nodes[id as usize];
+            let end = (node.first_surface as usize + node.num_surfaces as usize)
+                .min(tree.surfaces.len());
+            let start = (node.first_surface as usize).min(end);
+            tree.surfaces[start..end].iter().copied().filter(|&s| s < nt)
+        };
+        // Depth-first pre-order.
         let mut order = Vec::with_capacity(n);
-        let mut new_id = vec![u32::MAX; n];
+        let mut seen = vec![false; n];
         let mut stack = vec![0u32];
         while let Some(id) = stack.pop() {
-            if new_id[id as usize] != u32::MAX {
-                continue; // defensive: a malformed tree listing a node twice
+            if std::mem::replace(&mut seen[id as usize], true) {
+                continue;
             }
-            new_id[id as usize] = order.len() as u32;
             order.push(id);
-            let node = &tree.nodes[id as usize];
-            for c in node.children().rev() {
-                if (c as usize) < n {
-                    stack.push(c);
-                }
-            }
+            let mut k: Vec<u32> = kids(id).collect();
+            k.reverse();
+            stack.extend(k);
         }
-        let mut nodes = Vec::with_capacity(order.len());
-        let mut child_box = Vec::with_capacity(order.len());
-        let mut child_node = Vec::with_capacity(order.len());
-        let mut tris = Vec::with_capacity(tree.surfaces.len());
-        let mut tri_id = Vec::with_capacity(tree.surfaces.len());
-        let nt = scene.num_triangles() as u32;
+        // Pass 1: where each node's children block and triangle run start.
+        let mut refs = vec![NodeRef::default(); n];
+        let (mut nc, mut ntri) = (0u32, 0u32);
         for &id in &order {
-            let tree_node = &tree.nodes[id as usize];
-            let tri_start = tris.len() as u32;
-            let end = (tree_node.first_surface as usize + tree_node.num_surfaces as usize)
-                .min(tree.surfaces.len());
-            let start = (tree_node.first_surface as usize).min(end);
-            for &s in &tree.surfaces[start..end] {
-                if s >= nt {
-                    continue;
-                }
+            let c = kids(id).count() as u32;
+            let t = surfs(id).count() as u32;
+            refs[id as usize] = NodeRef {
+                first_child: nc,
+                num_children: c,
+                tri_start: ntri,
+                num_tris: t,
+            };
+            nc += c;
+            ntri += t;
+        }
+        // Pass 2: fill them in.
+        let mut children = Vec::with_capacity(nc as usize);
+        let mut tris = Vec::with_capacity(ntri as usize);
+        let mut tri_id = Vec::with_capacity(ntri as usize);
+        for &id in &order {
+            for c in kids(id) {
+                children.push(Child {
+                    b: box6(&tree.nodes[c as usize].bbox),
+                    node: refs[c as usize],
+                });
+            }
+            for s in surfs(id) {
                 let [a, b, c] = scene.tri_vertices(s as usize);
                 tris.push([a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]);
                 tri_id.push(s);
             }
-            let child_start = child_box.len() as u32;
-            for c in tree_node.children() {
-                if (c as usize) < n && new_id[c as usize] != u32::MAX {
-                    child_box.push(box6(&tree.nodes[c as usize].bbox));
-                    child_node.push(new_id[c as usize]);
-                }
-            }
-            nodes.push(FlatNode {
-                tri_start,
-                tri_end: tris.len() as u32,
-                child_start,
-                child_end: child_box.len() as u32,
-            });
         }
         Layout {
-            nodes,
-            root_box: box6(&tree.nodes[0].bbox),
-            child_box,
-            child_node,
+            root: Some(Child {
+                b: box6(&tree.nodes[0].bbox),
+                node: refs[0],
+            }),
+            children,
             tris,
             tri_id,
             tree_id: order,
@@ -208,20 +228,20 @@ impl Layout {
     }
 }
 
-/// Traversal stack kept in a fixed array, spilling to the heap only for very deep or very wide
-/// trees.
-pub(crate) struct Stack<T: Copy + Default, const N: usize> {
-    buf: [T; N],
+/// Traversal stack kept in a fixed array on the machine stack (not initialised), spilling to
+/// the heap only for very deep or very wide trees.
+pub(crate) struct Stack<T: Copy, const N: usize> {
+    buf: [MaybeUninit<T>; N],
     len: usize,
     heap: Vec<T>,
     spilled: bool,
 }
 
-impl<T: Copy + Default, const N: usize> Stack<T, N> {
+impl<T: Copy, const N: usize> Stack<T, N> {
     #[inline(always)]
     pub(crate) fn new() -> Self {
         Self {
-            buf: [T::default(); N],
+            buf: [const { MaybeUninit::uninit() }; N],
             len: 0,
             heap: Vec::new(),
             spilled: false,
@@ -232,12 +252,14 @@ impl<T: Copy + Default, const N: usize> Stack<T, N> {
     pub(crate) fn push(&mut self, x: T) {
         if !self.spilled {
             if self.len < N {
-                self.buf[self.len] = x;
+                self.buf[self.len].write(x);
                 self.len += 1;
                 return;
             }
             self.heap.reserve(2 * N);
-            self.heap.extend_from_slice(&self.buf[..self.len]);
+            // SAFETY: the first `len` entries were written by `push`.
+            self.heap
+                .extend(self.buf[..self.len].iter().map(|x| unsafe { x.assume_init() }));
             self.spilled = true;
         }
         self.heap.push(x);
@@ -252,7 +274,8 @@ impl<T: Copy + Default, const N: usize> Stack<T, N> {
             return None;
         }
         self.len -= 1;
-        Some(self.buf[self.len])
+        // SAFETY: entries below the old `len` were written by `push`.
+        Some(unsafe { self.buf[self.len].assume_init() })
     }
 
     #[inline(always)]
@@ -271,15 +294,17 @@ impl<T: Copy + Default, const N: usize> Stack<T, N> {
             let l = self.heap.len();
             &mut self.heap[l - k..]
         } else {
-            &mut self.buf[self.len - k..self.len]
+            let s = &mut self.buf[self.len - k..self.len];
+            // SAFETY: these entries were written by `push`; MaybeUninit<T> has T's layout.
+            unsafe { &mut *(s as *mut [MaybeUninit<T>] as *mut [T]) }
         }
     }
 }
 
 /// Entry of the closest-hit stack: node and entry distance of its box.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Entry {
-    node: u32,
+    node: NodeRef,
     t: f32,
 }
 
@@ -306,9 +331,8 @@ impl<'a> RayCaster<'a> {
     /// Bytes used by the traversal layout.
     pub fn memory_bytes(&self) -> usize {
         let l = &self.layout;
-        l.nodes.len() * std::mem::size_of::<FlatNode>()
-            + l.child_box.len() * (24 + 4)
-            + l.tris.len() * (36 + 4)
+        l.children.len() * std::mem::size_of::<Child>()
+            + l.tris.len() * (std::mem::size_of::<TriVerts>() + 4)
             + l.tree_id.len() * 4
     }
 
@@ -466,9 +490,9 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> bool {
         let l = &self.layout;
-        if l.nodes.is_empty() {
+        let Some(root) = &l.root else {
             return false;
-        }
+        };
         let Some(r) = RayPre::new(origin, dir) else {
             return false;
         };
@@ -478,17 +502,17 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        if r.slab(&l.root_box, tmin, tmax).is_none() {
+        if r.slab(&root.b, tmin, tmax).is_none() {
             return false;
         }
-        let mut stack: Stack<u32, STACK> = Stack::new();
-        stack.push(0);
+        let mut stack: Stack<NodeRef, STACK> = Stack::new();
+        stack.push(root.node);
         while let Some(n) = stack.pop() {
-            let node = l.nodes[n as usize];
             if STATS {
                 stats.nodes += 1;
             }
-            for tri in &l.tris[node.tri_start as usize..node.tri_end as usize] {
+            let ts = n.tri_start as usize;
+            for tri in &l.tris[ts..ts + n.num_tris as usize] {
                 if STATS {
                     stats.tris += 1;
                 }
@@ -496,14 +520,34 @@ impl<'a> RayCaster<'a> {
                     return true;
                 }
             }
-            let cs = node.child_start as usize;
-            let ce = node.child_end as usize;
+            let cs = n.first_child as usize;
+            let ch = &l.children[cs..cs + n.num_children as usize];
             if STATS {
-                stats.boxes += (ce - cs) as u64;
+                stats.boxes += ch.len() as u64;
             }
-            for (b, &c) in l.child_box[cs..ce].iter().zip(&l.child_node[cs..ce]).rev() {
-                if r.slab(b, tmin, tmax).is_some() {
-                    stack.push(c);
+            if let [c0, c1] = ch {
+                // Binary node: nearer child on top.
+                let h0 = r.slab(&c0.b, tmin, tmax);
+                let h1 = r.slab(&c1.b, tmin, tmax);
+                match (h0, h1) {
+                    (Some(t0), Some(t1)) => {
+                        if t0 <= t1 {
+                            stack.push(c1.node);
+                            stack.push(c0.node);
+                        } else {
+                            stack.push(c0.node);
+                            stack.push(c1.node);
+                        }
+                    }
+                    (Some(_), None) => stack.push(c0.node),
+                    (None, Some(_)) => stack.push(c1.node),
+                    (None, None) => {}
+                }
+                continue;
+            }
+            for c in ch.iter().rev() {
+                if r.slab(&c.b, tmin, tmax).is_some() {
+                    stack.push(c.node);
                 }
             }
         }
@@ -520,9 +564,7 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> Option<Hit> {
         let l = &self.layout;
-        if l.nodes.is_empty() {
-            return None;
-        }
+        let root = l.root.as_ref()?;
         let r = RayPre::new(origin, dir)?;
         if !(tmin <= tmax) {
             return None;
@@ -530,22 +572,25 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        let t0 = r.slab(&l.root_box, tmin, tmax)?;
+        let t0 = r.slab(&root.b, tmin, tmax)?;
         let mut best_t = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
         let mut stack: Stack<Entry, STACK> = Stack::new();
-        stack.push(Entry { node: 0, t: t0 });
+        stack.push(Entry {
+            node: root.node,
+            t: t0,
+        });
         while let Some(e) = stack.pop() {
             if e.t > best_t * watertight::BOX_SLACK {
                 continue;
             }
-            let node = l.nodes[e.node as usize];
+            let n = e.node;
             if STATS {
                 stats.nodes += 1;
-                stats.tris += (node.tri_end - node.tri_start) as u64;
-                stats.boxes += (node.child_end - node.child_start) as u64;
+                stats.tris += n.num_tris as u64;
+                stats.boxes += n.num_children as u64;
             }
-            for k in node.tri_start..node.tri_end {
+            for k in n.tri_start..n.tri_start + n.num_tris {
                 if let Some((t, u, v)) = intersect(&r, &l.tris[k as usize], tmin, best_t) {
                     // Equal t: keep the lowest triangle id, as the brute-force loop does.
                     let better = match best {
@@ -559,12 +604,11 @@ impl<'a> RayCaster<'a> {
                     }
                 }
             }
-            let cs = node.child_start as usize;
-            let ce = node.child_end as usize;
+            let cs = n.first_child as usize;
             let before = stack.size();
-            for (b, &c) in l.child_box[cs..ce].iter().zip(&l.child_node[cs..ce]) {
-                if let Some(t) = r.slab(b, tmin, best_t) {
-                    stack.push(Entry { node: c, t });
+            for c in &l.children[cs..cs + n.num_children as usize] {
+                if let Some(t) = r.slab(&c.b, tmin, best_t) {
+                    stack.push(Entry { node: c.node, t });
                 }
             }
             let k = stack.size() - before;

@@ -46,10 +46,13 @@ fn layout_is_depth_first_with_inner_surfaces() {
     let s = two_tri_scene();
     let t = inner_surface_tree(&s);
     let rc = RayCaster::new(&s, &t);
-    assert_eq!(rc.layout.nodes.len(), 2);
     assert_eq!(rc.layout.tree_id, vec![0, 1]);
     assert_eq!(rc.layout.tri_id, vec![1, 0]);
-    assert_eq!(rc.layout.child_node, vec![1]);
+    assert_eq!(rc.layout.children.len(), 1);
+    let root = rc.layout.root.unwrap().node;
+    assert_eq!((root.first_child, root.num_children, root.tri_start, root.num_tris), (0, 1, 0, 1));
+    let leaf = rc.layout.children[0].node;
+    assert_eq!((leaf.num_children, leaf.tri_start, leaf.num_tris), (0, 1, 1));
     let _ = Aabb::EMPTY;
 }
 

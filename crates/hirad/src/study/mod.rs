@@ -5,8 +5,8 @@
 //! one colour per strategy).
 
 pub mod plot;
-pub mod score;
-pub mod store;
 pub mod records;
 pub mod report;
 pub mod run;
+pub mod score;
+pub mod store;

@@ -63,17 +63,27 @@ fn perr<E: std::fmt::Display>(what: &Path) -> impl Fn(E) -> Error + '_ {
 
 /// Range of the values, padded, positive when `log`.
 fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
-    let v: Vec<f64> = vals.filter(|x| x.is_finite() && (!log || *x > 0.0)).collect();
+    let v: Vec<f64> = vals
+        .filter(|x| x.is_finite() && (!log || *x > 0.0))
+        .collect();
     if v.is_empty() {
         return if log { (0.1, 10.0) } else { (0.0, 1.0) };
     }
     let lo = v.iter().cloned().fold(f64::INFINITY, f64::min);
     let hi = v.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     if log {
-        let (lo, hi) = if hi / lo < 1.01 { (lo / 2.0, hi * 2.0) } else { (lo, hi) };
+        let (lo, hi) = if hi / lo < 1.01 {
+            (lo / 2.0, hi * 2.0)
+        } else {
+            (lo, hi)
+        };
         (lo / 1.25, hi * 1.25)
     } else {
-        let pad = if hi > lo { (hi - lo) * 0.05 } else { hi.abs().max(1.0) * 0.1 };
+        let pad = if hi > lo {
+            (hi - lo) * 0.05
+        } else {
+            hi.abs().max(1.0) * 0.1
+        };
         (lo - pad, hi + pad)
     }
 }
@@ -111,14 +121,18 @@ where
             .points
             .iter()
             .cloned()
-            .filter(|(x, y)| x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0))
+            .filter(|(x, y)| {
+                x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0)
+            })
             .collect();
         let color = s.color;
         chart
             .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
             .map_err(|x| e(&x))?
             .label(&s.name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
         chart
             .draw_series(pts.iter().map(|&pt| Circle::new(pt, 3, color.filled())))
             .map_err(|x| e(&x))?;
@@ -137,8 +151,14 @@ fn draw_line_any<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     p: &LinePlot,
 ) -> std::result::Result<(), String> {
-    let (x0, x1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)), p.log_x);
-    let (y0, y1) = range(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.1)), p.log_y);
+    let (x0, x1) = range(
+        p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)),
+        p.log_x,
+    );
+    let (y0, y1) = range(
+        p.series.iter().flat_map(|s| s.points.iter().map(|q| q.1)),
+        p.log_y,
+    );
     match (p.log_x, p.log_y) {
         (true, true) => draw_lines(root, p, (x0..x1).log_scale(), (y0..y1).log_scale()),
         (true, false) => draw_lines(root, p, (x0..x1).log_scale(), y0..y1),
@@ -154,7 +174,12 @@ fn draw_bars<DB: DrawingBackend>(
     let e = |e: &dyn std::fmt::Debug| format!("{e:?}");
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let n = p.bars.len().max(1);
-    let ymax = p.bars.iter().map(|b| b.2).filter(|v| v.is_finite()).fold(0.0, f64::max);
+    let ymax = p
+        .bars
+        .iter()
+        .map(|b| b.2)
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
     let ymax = if ymax > 0.0 { ymax * 1.1 } else { 1.0 };
     let names: Vec<String> = p.bars.iter().map(|b| b.0.clone()).collect();
     let mut chart = ChartBuilder::on(&root)
@@ -181,7 +206,10 @@ fn draw_bars<DB: DrawingBackend>(
         let v = if v.is_finite() { *v } else { 0.0 };
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(SegmentValue::Exact(i), 0.0), (SegmentValue::Exact(i + 1), v)],
+                [
+                    (SegmentValue::Exact(i), 0.0),
+                    (SegmentValue::Exact(i + 1), v),
+                ],
                 color.filled(),
             )))
             .map_err(|x| e(&x))?;
@@ -196,12 +224,18 @@ impl LinePlot {
         let svg = stem.with_extension("svg");
         let png = stem.with_extension("png");
         let mut s = String::new();
-        draw_line_any(SVGBackend::with_string(&mut s, SIZE).into_drawing_area(), self)
-            .map_err(perr(&svg))?;
+        draw_line_any(
+            SVGBackend::with_string(&mut s, SIZE).into_drawing_area(),
+            self,
+        )
+        .map_err(perr(&svg))?;
         write_atomic(&svg, |w| w.write_all(s.as_bytes()))?;
         let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-        draw_line_any(BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area(), self)
-            .map_err(perr(&png))?;
+        draw_line_any(
+            BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area(),
+            self,
+        )
+        .map_err(perr(&png))?;
         write_png(&png, buf)?;
         Ok(vec![svg, png])
     }
@@ -213,12 +247,18 @@ impl BarPlot {
         let svg = stem.with_extension("svg");
         let png = stem.with_extension("png");
         let mut s = String::new();
-        draw_bars(SVGBackend::with_string(&mut s, SIZE).into_drawing_area(), self)
-            .map_err(perr(&svg))?;
+        draw_bars(
+            SVGBackend::with_string(&mut s, SIZE).into_drawing_area(),
+            self,
+        )
+        .map_err(perr(&svg))?;
         write_atomic(&svg, |w| w.write_all(s.as_bytes()))?;
         let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-        draw_bars(BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area(), self)
-            .map_err(perr(&png))?;
+        draw_bars(
+            BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area(),
+            self,
+        )
+        .map_err(perr(&png))?;
         write_png(&png, buf)?;
         Ok(vec![svg, png])
     }
@@ -228,8 +268,11 @@ fn write_png(path: &Path, rgb: Vec<u8>) -> Result<()> {
     let img = image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb)
         .ok_or_else(|| Error::Config("plot buffer size".into()))?;
     let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-        .map_err(|e| Error::Config(format!("png {}: {e}", path.display())))?;
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::Config(format!("png {}: {e}", path.display())))?;
     write_bytes_atomic(path, &bytes)
 }
 
@@ -252,7 +295,9 @@ mod tests {
                 .map(|(k, &s)| Series {
                     name: s.name().into(),
                     color: strategy_color(s),
-                    points: (1..6).map(|i| (i as f64 * (k + 1) as f64, 10.0 / i as f64)).collect(),
+                    points: (1..6)
+                        .map(|i| (i as f64 * (k + 1) as f64, 10.0 / i as f64))
+                        .collect(),
                 })
                 .collect(),
         };
@@ -265,10 +310,15 @@ mod tests {
         let b = BarPlot {
             title: "clusters".into(),
             y_label: "clusters".into(),
-            bars: vec![("kdt".into(), PALETTE[0], 10.0), ("proxi".into(), PALETTE[5], 3.0)],
+            bars: vec![
+                ("kdt".into(), PALETTE[0], 10.0),
+                ("proxi".into(), PALETTE[5], 3.0),
+            ],
         };
         let files = b.write(&dir.path().join("fig6")).unwrap();
-        assert!(std::fs::read_to_string(&files[0]).unwrap().contains("proxi"));
+        assert!(std::fs::read_to_string(&files[0])
+            .unwrap()
+            .contains("proxi"));
         // Distinct colours for every strategy.
         let mut c: Vec<_> = Strategy::ALL.iter().map(|&s| strategy_color(s)).collect();
         c.dedup();

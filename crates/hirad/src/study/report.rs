@@ -103,8 +103,15 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
     // Build times.
     {
         let p = c(Strategy::Proxi);
-        let ratio = |s| c(s).zip(p).map(|(a, p)| 100.0 * a.build_ms / p.build_ms.max(1e-9));
-        let (ours, rep) = match (ratio(Strategy::TfOct), ratio(Strategy::Okdt), ratio(Strategy::OkdtP)) {
+        let ratio = |s| {
+            c(s).zip(p)
+                .map(|(a, p)| 100.0 * a.build_ms / p.build_ms.max(1e-9))
+        };
+        let (ours, rep) = match (
+            ratio(Strategy::TfOct),
+            ratio(Strategy::Okdt),
+            ratio(Strategy::OkdtP),
+        ) {
             (Some(t), Some(o), Some(op)) => (
                 format!("tf-oct {t:.1}%, okdt {o:.1}%, okdt-p {op:.1}% of proxi's build time"),
                 Some(t < 1.0 && o < 1.0 && (20.0..=80.0).contains(&op)),
@@ -112,24 +119,41 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
             _ => ("missing strategies".into(), None),
         };
         out.push(Finding {
-            paper: "Top-down builds (TF-OCT, OKDT) take < 1% of PROXI's time; OKDT-P 20–80% (§5.2)".into(),
+            paper: "Top-down builds (TF-OCT, OKDT) take < 1% of PROXI's time; OKDT-P 20–80% (§5.2)"
+                .into(),
             ours,
             reproduced: rep,
         });
     }
     // Ray casting.
     {
-        let paper = [Strategy::Kdt, Strategy::Obt, Strategy::Okdt, Strategy::OkdtP, Strategy::TfOct, Strategy::Proxi];
-        let rows: Vec<&RayRecord> = paper.iter().filter_map(|&s| by(&d.rays, s, |r| r.strategy)).collect();
+        let paper = [
+            Strategy::Kdt,
+            Strategy::Obt,
+            Strategy::Okdt,
+            Strategy::OkdtP,
+            Strategy::TfOct,
+            Strategy::Proxi,
+        ];
+        let rows: Vec<&RayRecord> = paper
+            .iter()
+            .filter_map(|&s| by(&d.rays, s, |r| r.strategy))
+            .collect();
         let (ours, rep) = if rows.len() >= 2 {
-            let fastest = rows.iter().max_by(|a, b| a.mrays_per_s.total_cmp(&b.mrays_per_s)).unwrap();
+            let fastest = rows
+                .iter()
+                .max_by(|a, b| a.mrays_per_s.total_cmp(&b.mrays_per_s))
+                .unwrap();
             let desc = rows
                 .iter()
                 .map(|r| format!("{} {:.2}", r.strategy, r.mrays_per_s))
                 .collect::<Vec<_>>()
                 .join(", ");
             (
-                format!("fastest of the paper's strategies: {} (Mrays/s: {desc})", fastest.strategy),
+                format!(
+                    "fastest of the paper's strategies: {} (Mrays/s: {desc})",
+                    fastest.strategy
+                ),
                 Some(fastest.strategy == Strategy::OkdtP),
             )
         } else {
@@ -154,13 +178,18 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
                         "{s}: {}/{} rises, τ={}",
                         x.rises,
                         x.steps,
-                        x.kendall_tau.map(|t| format!("{t:.2}")).unwrap_or("–".into())
+                        x.kendall_tau
+                            .map(|t| format!("{t:.2}"))
+                            .unwrap_or("–".into())
                     )
                 })
                 .collect::<Vec<_>>()
                 .join("; ");
             let monotone = m.values().filter(|x| x.rises == 0).count();
-            (format!("{monotone} of {} curves monotone ({desc})", m.len()), None)
+            (
+                format!("{monotone} of {} curves monotone ({desc})", m.len()),
+                None,
+            )
         };
         out.push(Finding {
             paper: "Error decreases monotonically with ε on structured scenes (OFFICE, VRLAB); curves are erratic on polygon soups (AIRCRAFT, CAR) (§5.1, Figs. 2–3)".into(),
@@ -171,7 +200,12 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
     // Volumetric shadows.
     {
         let v = |s| by(&d.volume, s, |r| r.strategy);
-        let order = [Strategy::Proxi, Strategy::OkdtP, Strategy::Okdt, Strategy::TfOct];
+        let order = [
+            Strategy::Proxi,
+            Strategy::OkdtP,
+            Strategy::Okdt,
+            Strategy::TfOct,
+        ];
         let rows: Vec<&VolumeRow> = order.iter().filter_map(|&s| v(s)).collect();
         let (ours, rep) = if rows.len() == order.len() {
             let err_ok = rows.windows(2).all(|w| w[0].error <= w[1].error);
@@ -214,7 +248,13 @@ pub fn markdown(d: &ReportData) -> String {
     let _ = writeln!(md, "## Findings of the paper, and ours\n");
     let _ = writeln!(md, "| paper | ours | reproduced |\n|---|---|---|");
     for f in findings(d) {
-        let _ = writeln!(md, "| {} | {} | {} |", f.paper, f.ours, verdict(f.reproduced));
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} |",
+            f.paper,
+            f.ours,
+            verdict(f.reproduced)
+        );
     }
     let _ = writeln!(md, "\n## 1. Cluster statistics and build time\n");
     let proxi_ms = by(&d.clusters, Strategy::Proxi, |r| r.strategy).map(|r| r.build_ms);
@@ -226,7 +266,8 @@ pub fn markdown(d: &ReportData) -> String {
         let pct = proxi_ms
             .map(|p| format!("{:.1}", 100.0 * r.build_ms / p.max(1e-9)))
             .unwrap_or("–".into());
-        let _ = writeln!(
+        let _ =
+            writeln!(
             md,
             "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {} | {:.1} | {} |",
             r.strategy, r.clusters, r.depth_max, r.depth_mean, r.avg_surfaces, r.avg_children,
@@ -243,12 +284,21 @@ pub fn markdown(d: &ReportData) -> String {
         "| strategy | pairs | build ms | query ms | Mrays/s | vs sah | occluded | nodes/ray | triangles/ray |\n|---|---|---|---|---|---|---|---|---|"
     );
     for r in &d.rays {
-        let rel = sah.map(|s| format!("{:.2}", r.mrays_per_s / s.max(1e-12))).unwrap_or("–".into());
+        let rel = sah
+            .map(|s| format!("{:.2}", r.mrays_per_s / s.max(1e-12)))
+            .unwrap_or("–".into());
         let _ = writeln!(
             md,
             "| {} | {} | {:.1} | {:.1} | {:.3} | {} | {} | {:.1} | {:.1} |",
-            r.strategy, r.pairs, r.build_ms, r.query_ms, r.mrays_per_s, rel, r.occluded,
-            r.nodes_per_ray, r.tris_per_ray
+            r.strategy,
+            r.pairs,
+            r.build_ms,
+            r.query_ms,
+            r.mrays_per_s,
+            rel,
+            r.occluded,
+            r.nodes_per_ray,
+            r.tris_per_ray
         );
     }
     md.push('\n');
@@ -264,19 +314,33 @@ pub fn markdown(d: &ReportData) -> String {
             let _ = writeln!(
                 md,
                 "| {} | {:.3e} | {:.3} | {} | {} | {:.1} | {:.3} |",
-                r.strategy, r.eps, r.solve_s, r.elements, r.links, r.cluster_energy_pct, r.error()
+                r.strategy,
+                r.eps,
+                r.solve_s,
+                r.elements,
+                r.links,
+                r.cluster_energy_pct,
+                r.error()
             );
         }
     }
-    let _ = writeln!(md, "\nMonotonicity (steps where the error rises as ε falls; Kendall τ between ε and error):\n");
-    let _ = writeln!(md, "| strategy | rises | steps | Kendall τ |\n|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\nMonotonicity (steps where the error rises as ε falls; Kendall τ between ε and error):\n"
+    );
+    let _ = writeln!(
+        md,
+        "| strategy | rises | steps | Kendall τ |\n|---|---|---|---|"
+    );
     for (s, x) in &mono {
         let _ = writeln!(
             md,
             "| {s} | {} | {} | {} |",
             x.rises,
             x.steps,
-            x.kendall_tau.map(|t| format!("{t:.3}")).unwrap_or("–".into())
+            x.kendall_tau
+                .map(|t| format!("{t:.3}"))
+                .unwrap_or("–".into())
         );
     }
     md.push('\n');
@@ -292,7 +356,11 @@ pub fn markdown(d: &ReportData) -> String {
             let _ = writeln!(
                 md,
                 "| {} | {:.3} | {:.3} | {:.2} | {:.3} |",
-                r.strategy, r.volume_s, r.exact_s, r.exact_s / r.volume_s.max(1e-12), r.error
+                r.strategy,
+                r.volume_s,
+                r.exact_s,
+                r.exact_s / r.volume_s.max(1e-12),
+                r.error
             );
         }
         md.push('\n');

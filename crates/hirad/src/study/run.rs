@@ -50,6 +50,9 @@ pub struct StudyConfig {
     pub eps_list: Vec<f64>,
     pub eps_hi: f64,
     pub eps_lo: f64,
+    /// Choose `eps_hi`/`eps_lo` by probe solves so that 30–100% of the gathered energy goes
+    /// through cluster links (the paper's range); see [`Study::calibrate`].
+    pub eps_auto: bool,
     /// Viewpoints by camera name (empty: every camera of the scene).
     pub viewpoints: Vec<String>,
     /// Image size of the study's renders.
@@ -80,6 +83,7 @@ impl Default for StudyConfig {
             eps_list: Vec::new(),
             eps_hi: 0.2,
             eps_lo: 0.002,
+            eps_auto: true,
             viewpoints: Vec::new(),
             size: (320, 240),
             supersample: 2,
@@ -154,16 +158,30 @@ pub fn viewpoints(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<(String, Camer
         cfg.viewpoints
             .iter()
             .map(|n| {
-                scene.cameras.iter().find(|c| &c.name == n).cloned().ok_or_else(|| {
-                    Error::Config(format!(
-                        "scene has no viewpoint '{n}' (has: {})",
-                        scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
-                    ))
-                })
+                scene
+                    .cameras
+                    .iter()
+                    .find(|c| &c.name == n)
+                    .cloned()
+                    .ok_or_else(|| {
+                        Error::Config(format!(
+                            "scene has no viewpoint '{n}' (has: {})",
+                            scene
+                                .cameras
+                                .iter()
+                                .map(|c| c.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ))
+                    })
             })
             .collect::<Result<_>>()?
     };
-    let cams = if cams.is_empty() { vec![scene.default_camera()] } else { cams };
+    let cams = if cams.is_empty() {
+        vec![scene.default_camera()]
+    } else {
+        cams
+    };
     let o = CameraOverrides {
         size: Some(cfg.size),
         ..Default::default()
@@ -173,8 +191,39 @@ pub fn viewpoints(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<(String, Camer
         .collect()
 }
 
-/// The units of a study, in the order they run.
-pub fn plan(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<Job>> {
+/// Result of the ε calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    pub strategy: Strategy,
+    /// Probes: (relative ε, % cluster energy, solve seconds).
+    pub probes: Vec<(f64, f64, f64)>,
+    pub eps_hi: f64,
+    pub eps_lo: f64,
+}
+
+/// Pick the sweep's ends from probes `(ε, %cluster, s)` sorted by decreasing ε.
+pub fn pick_range(probes: &[(f64, f64, f64)]) -> (f64, f64) {
+    let hi = probes
+        .iter()
+        .find(|p| p.1 <= 95.0)
+        .map(|p| p.0)
+        .or_else(|| probes.last().map(|p| p.0))
+        .unwrap_or(0.2);
+    let lo = probes
+        .iter()
+        .filter(|p| p.1 >= 30.0 && p.0 <= hi)
+        .map(|p| p.0)
+        .fold(f64::NAN, f64::min);
+    let lo = if lo.is_finite() && lo < hi {
+        lo
+    } else {
+        hi / 8.0
+    };
+    (hi, lo)
+}
+
+/// The units of a study, in the order they run; `eps` are the sweep's relative ε.
+pub fn plan(scene: &Scene, cfg: &StudyConfig, eps: &[f64]) -> Result<Vec<Job>> {
     let mut jobs = Vec::new();
     for &s in &cfg.strategies {
         jobs.push(Job::Clusters(s));
@@ -184,13 +233,12 @@ pub fn plan(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<Job>> {
             jobs.push(Job::Raybench(s));
         }
     }
-    let eps = cfg.eps_values();
     if !eps.is_empty() {
         for (name, _) in viewpoints(scene, cfg)? {
             jobs.push(Job::Reference(name));
         }
         for &s in &cfg.strategies {
-            for &e in &eps {
+            for &e in eps {
                 jobs.push(Job::Solve(s, e));
             }
         }
@@ -200,7 +248,10 @@ pub fn plan(scene: &Scene, cfg: &StudyConfig) -> Result<Vec<Job>> {
             jobs.push(Job::Volume(s));
         }
     }
-    Ok(jobs.into_iter().filter(|j| cfg.selected(&j.key())).collect())
+    Ok(jobs
+        .into_iter()
+        .filter(|j| cfg.selected(&j.key()))
+        .collect())
 }
 
 /// A study in progress: the scene, its prepared inputs and the store.
@@ -234,7 +285,11 @@ fn ms(t: Instant) -> f64 {
 
 impl<'a> Study<'a> {
     /// Load the scene and prepare a study.
-    pub fn new(cfg: StudyConfig, progress: &'a dyn Progress, cancel: &'a AtomicBool) -> Result<Self> {
+    pub fn new(
+        cfg: StudyConfig,
+        progress: &'a dyn Progress,
+        cancel: &'a AtomicBool,
+    ) -> Result<Self> {
         let scene = Scene::load(&cfg.scene, &SceneOptions::default())?;
         let prims = Prims::from_scene(&scene);
         let views = viewpoints(&scene, &cfg)?;
@@ -251,6 +306,71 @@ impl<'a> Study<'a> {
             progress,
             cancel,
         })
+    }
+
+    /// Probe solves choosing the sweep's ε range (stored as unit `calibrate`).
+    pub fn calibrate(&self) -> Result<Calibration> {
+        if let Some(c) = self.store.get::<Calibration>("calibrate") {
+            return Ok(c);
+        }
+        let strategy = if self.cfg.strategies.contains(&Strategy::OkdtP) {
+            Strategy::OkdtP
+        } else {
+            self.cfg
+                .strategies
+                .first()
+                .copied()
+                .unwrap_or(Strategy::OkdtP)
+        };
+        self.progress.message("calibrating ε");
+        let mut probes = Vec::new();
+        let mut spent = 0.0;
+        for k in 0..20 {
+            self.check_cancel()?;
+            let e = 0.5f64.powi(k);
+            let solver = SolverConfig {
+                eps_rel: e,
+                eps: None,
+                ..self.cfg.solver.clone()
+            };
+            let (sol, secs) = self.solve_with(strategy, &solver)?;
+            let pct = sol.stats.cluster_energy_percent;
+            tracing::info!("calibration ε={e:.3e}: {pct:.1}% through clusters, {secs:.2} s");
+            probes.push((e, pct, secs));
+            spent += secs;
+            // Stop below the paper's range, or before the probes cost more than a few solves.
+            if pct < 30.0 || spent > 60.0 {
+                break;
+            }
+        }
+        let (eps_hi, eps_lo) = pick_range(&probes);
+        let c = Calibration {
+            strategy,
+            probes,
+            eps_hi,
+            eps_lo,
+        };
+        self.store.put("calibrate", &c)?;
+        Ok(c)
+    }
+
+    /// The sweep's relative ε values, largest first (calibrating first when asked).
+    pub fn eps(&self) -> Result<Vec<f64>> {
+        if self.cfg.eps_list.is_empty() && self.cfg.tolerances > 0 && self.cfg.eps_auto {
+            let c = self.calibrate()?;
+            let cfg = StudyConfig {
+                eps_hi: c.eps_hi,
+                eps_lo: c.eps_lo,
+                ..self.cfg.clone()
+            };
+            return Ok(cfg.eps_values());
+        }
+        Ok(self.cfg.eps_values())
+    }
+
+    /// Every unit of this study.
+    pub fn plan(&self) -> Result<Vec<Job>> {
+        plan(&self.scene, &self.cfg, &self.eps()?)
     }
 
     fn check_cancel(&self) -> Result<()> {
@@ -406,7 +526,8 @@ impl<'a> Study<'a> {
     fn solve_with(&self, s: Strategy, solver: &SolverConfig) -> Result<(radiosity::Solution, f64)> {
         let tree = self.tree(s);
         let t = Instant::now();
-        let sol = radiosity::solve_cancellable(&self.scene, &tree, solver, self.progress, self.cancel)?;
+        let sol =
+            radiosity::solve_cancellable(&self.scene, &tree, solver, self.progress, self.cancel)?;
         Ok((sol, t.elapsed().as_secs_f64()))
     }
 
@@ -421,6 +542,11 @@ impl<'a> Study<'a> {
         let imgs = self.render_views(&sol, &dir)?;
         let mut errors = Vec::new();
         for ((name, _), (_, img)) in self.views.iter().zip(&imgs) {
+            // A job run alone (`--jobs`, `--only`) makes the reference it needs; the path
+            // tracer is deterministic, so every machine makes the same one.
+            if !self.store.has(&Job::Reference(name.clone()).key()) {
+                self.run_job(&Job::Reference(name.clone()))?;
+            }
             let reference = Image::read(&self.reference_path(name))?;
             errors.push(crate::metrics::compare(img, &reference)?.rms_delta_e);
         }
@@ -468,10 +594,11 @@ impl<'a> Study<'a> {
 
     /// Run every planned unit that is not done yet; the overall progress bar counts units.
     pub fn run_all(&self) -> Result<()> {
-        let jobs = plan(&self.scene, &self.cfg)?;
+        let jobs = self.plan()?;
         // References first: solves compare against them.
-        let (refs, rest): (Vec<Job>, Vec<Job>) =
-            jobs.into_iter().partition(|j| matches!(j, Job::Reference(_)));
+        let (refs, rest): (Vec<Job>, Vec<Job>) = jobs
+            .into_iter()
+            .partition(|j| matches!(j, Job::Reference(_)));
         for j in refs.iter().chain(rest.iter()) {
             self.run_job(j)?;
         }
@@ -530,8 +657,12 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
                 .map(|r| (r.strategy.to_string(), strategy_color(r.strategy), f(r)))
                 .collect(),
         };
-        let f1 = bars("Clusters per strategy", "clusters", &|r| r.clusters as f64).write(&plots.join("clusters"))?;
-        let f2 = bars("Children per cluster", "children / cluster", &|r| r.avg_children).write(&plots.join("children"))?;
+        let f1 = bars("Clusters per strategy", "clusters", &|r| r.clusters as f64)
+            .write(&plots.join("clusters"))?;
+        let f2 = bars("Children per cluster", "children / cluster", &|r| {
+            r.avg_children
+        })
+        .write(&plots.join("children"))?;
         d.figures.insert("clusters".into(), rel(out, &f1));
         d.figures.insert("children".into(), rel(out, &f2));
         files.extend(f1);
@@ -544,7 +675,13 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
             bars: d
                 .rays
                 .iter()
-                .map(|r| (r.strategy.to_string(), strategy_color(r.strategy), r.query_ms))
+                .map(|r| {
+                    (
+                        r.strategy.to_string(),
+                        strategy_color(r.strategy),
+                        r.query_ms,
+                    )
+                })
                 .collect(),
         }
         .write(&plots.join("raytime"))?;
@@ -591,7 +728,16 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     for r in &d.solves {
         csv.push_str(&format!(
             "{},{},{},{},{:e},{:.6},{},{},{:.3},{:.6}\n",
-            d.meta.scene, r.strategy, r.refine, r.visibility, r.eps, r.solve_s, r.elements, r.links, r.cluster_energy_pct, r.error()
+            d.meta.scene,
+            r.strategy,
+            r.refine,
+            r.visibility,
+            r.eps,
+            r.solve_s,
+            r.elements,
+            r.links,
+            r.cluster_energy_pct,
+            r.error()
         ));
     }
     let p = out.join("sweep.csv");
@@ -601,7 +747,18 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     for r in &d.clusters {
         csv.push_str(&format!(
             "{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{},{:.4}\n",
-            d.meta.scene, r.strategy, r.clusters, r.depth_max, r.depth_mean, r.avg_surfaces, r.avg_children, r.branching, r.overlap, r.empty_space, r.tree_bytes, r.build_ms
+            d.meta.scene,
+            r.strategy,
+            r.clusters,
+            r.depth_max,
+            r.depth_mean,
+            r.avg_surfaces,
+            r.avg_children,
+            r.branching,
+            r.overlap,
+            r.empty_space,
+            r.tree_bytes,
+            r.build_ms
         ));
     }
     let p = out.join("clusters.csv");
@@ -611,7 +768,16 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     for r in &d.rays {
         csv.push_str(&format!(
             "{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}\n",
-            d.meta.scene, r.strategy, r.pairs, r.seed, r.build_ms, r.query_ms, r.mrays_per_s, r.occluded, r.nodes_per_ray, r.tris_per_ray
+            d.meta.scene,
+            r.strategy,
+            r.pairs,
+            r.seed,
+            r.build_ms,
+            r.query_ms,
+            r.mrays_per_s,
+            r.occluded,
+            r.nodes_per_ray,
+            r.tris_per_ray
         ));
     }
     let p = out.join("raybench.csv");
@@ -622,7 +788,10 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     crate::io::write_bytes_atomic(&p, md.as_bytes())?;
     files.push(p);
     let p = out.join("report.html");
-    crate::io::write_bytes_atomic(&p, report::html(&md, &format!("hirad study: {}", d.meta.scene)).as_bytes())?;
+    crate::io::write_bytes_atomic(
+        &p,
+        report::html(&md, &format!("hirad study: {}", d.meta.scene)).as_bytes(),
+    )?;
     files.push(p);
     let p = out.join("results.json");
     crate::io::write_json_atomic(
@@ -640,7 +809,12 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
 fn rel(base: &std::path::Path, files: &[PathBuf]) -> Vec<String> {
     files
         .iter()
-        .map(|f| f.strip_prefix(base).unwrap_or(f).to_string_lossy().replace('\\', "/"))
+        .map(|f| {
+            f.strip_prefix(base)
+                .unwrap_or(f)
+                .to_string_lossy()
+                .replace('\\', "/")
+        })
         .collect()
 }
 
@@ -674,7 +848,9 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
 fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Result<()> {
     let mut stack = vec![from.to_path_buf()];
     while let Some(d) = stack.pop() {
-        let Ok(rd) = std::fs::read_dir(&d) else { continue };
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            continue;
+        };
         for e in rd.flatten() {
             let p = e.path();
             if p.is_dir() {
@@ -682,7 +858,9 @@ fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Res
                     stack.push(p);
                 }
             } else if p.extension().is_some_and(|x| exts.iter().any(|e| x == *e)) {
-                let Ok(r) = p.strip_prefix(from) else { continue };
+                let Ok(r) = p.strip_prefix(from) else {
+                    continue;
+                };
                 let dst = to.join(r);
                 if !dst.exists() {
                     let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
@@ -692,4 +870,50 @@ fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Res
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eps_series_is_geometric_and_sorted() {
+        let c = StudyConfig {
+            tolerances: 5,
+            eps_hi: 0.16,
+            eps_lo: 0.01,
+            ..Default::default()
+        };
+        let v = c.eps_values();
+        assert_eq!(v.len(), 5);
+        for (a, b) in v.iter().zip([0.16, 0.08, 0.04, 0.02, 0.01]) {
+            assert!((a - b).abs() < 1e-12, "{v:?}");
+        }
+        let c = StudyConfig {
+            eps_list: vec![0.01, 0.3, 0.1],
+            ..Default::default()
+        };
+        assert_eq!(c.eps_values(), vec![0.3, 0.1, 0.01]);
+        assert_eq!(eps_key(0.1), "eps-1.0000e-1");
+        assert_eq!(
+            Job::Solve(Strategy::OkdtP, 0.25).key(),
+            "solve/okdt-p/eps-2.5000e-1"
+        );
+    }
+
+    #[test]
+    fn calibration_range_follows_cluster_energy() {
+        // ε: 1, .5, .25, .125, .0625 with % cluster energy 100, 97, 80, 45, 20.
+        let probes = [
+            (1.0, 100.0, 0.1),
+            (0.5, 97.0, 0.1),
+            (0.25, 80.0, 0.2),
+            (0.125, 45.0, 0.4),
+            (0.0625, 20.0, 0.9),
+        ];
+        assert_eq!(pick_range(&probes), (0.25, 0.125));
+        // Never below 30%: the last probe becomes eps_hi and the range spans 8×.
+        let probes = [(1.0, 100.0, 0.1), (0.5, 99.0, 0.1)];
+        assert_eq!(pick_range(&probes), (0.5, 0.0625));
+    }
 }

@@ -73,7 +73,9 @@ mod tests {
 
     #[test]
     fn monotone_curve_scores_perfect() {
-        let pts: Vec<(f64, f64)> = (0..10).map(|i| (2f64.powi(-i), 1.0 / (i + 1) as f64)).collect();
+        let pts: Vec<(f64, f64)> = (0..10)
+            .map(|i| (2f64.powi(-i), 1.0 / (i + 1) as f64))
+            .collect();
         let m = Monotonicity::of(&pts);
         assert_eq!(m.rises, 0);
         assert_eq!(m.steps, 9);

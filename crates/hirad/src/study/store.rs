@@ -58,7 +58,10 @@ impl Store {
     /// Directory that holds the keys under `prefix`.
     fn dir_of(&self, prefix: &str) -> PathBuf {
         let p = self.path(prefix);
-        let name = p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
         p.with_file_name(name.strip_suffix(".json").unwrap_or(&name))
     }
 
@@ -68,7 +71,10 @@ impl Store {
         match serde_json::from_str(&text) {
             Ok(v) => Some(v),
             Err(e) => {
-                tracing::warn!("ignoring unreadable result {}: {e}", self.path(key).display());
+                tracing::warn!(
+                    "ignoring unreadable result {}: {e}",
+                    self.path(key).display()
+                );
                 None
             }
         }
@@ -149,7 +155,9 @@ mod tests {
             .unwrap();
         assert_eq!((v, cached, calls), (2.5, true, 1));
         assert!(s.path("a/../b").starts_with(dir.path()));
-        assert!(s.path("solve/okdt-p/eps 1e-3").ends_with("solve/okdt-p/eps_1e-3.json"));
+        assert!(s
+            .path("solve/okdt-p/eps 1e-3")
+            .ends_with("solve/okdt-p/eps_1e-3.json"));
         assert_eq!(s.keys("solve"), vec!["solve/okdt-p/eps_1e-3".to_string()]);
         // Dots are kept: distinct ε give distinct files.
         s.put("solve/kdt/eps-2.0000e-1", &1.0).unwrap();
@@ -162,7 +170,13 @@ mod tests {
         // No temporary files are left behind.
         let leftovers = std::fs::read_dir(dir.path().join("solve/okdt-p"))
             .unwrap()
-            .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().ends_with(".tmp"))
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
             .count();
         assert_eq!(leftovers, 0);
     }

@@ -6,12 +6,15 @@
 //!   that the exact radiosity is B = E/(1 − ρ) = 2 W/m² everywhere; `furnace-sphere[:N]` is the
 //!   same test inside a sphere of radius 0.5 m (N segments around, default 24);
 //! - `cornell` — the Cornell University Program of Computer Graphics measured Cornell box;
-//! - `office` — an office interior of about 7,000 triangles (paper's OFFICE);
-//! - `soup[:N]` — an industrial hall of about N triangles (default 200,000), shuffled, one object;
-//! - `trees` — several trees of many leaf quads on a ground plane, under a sun and a sky.
+//! - `office` — an office interior of 8,354 triangles (paper's OFFICE), +Z up;
+//! - `soup[:N]` — an industrial hall of about N triangles (default 200,000 → 200,012),
+//!   triangles and vertices shuffled, one object;
+//! - `trees[:N]` — N trees (default 7 → 60,376 triangles) of many leaf quads on a ground plane,
+//!   under a sun and a sky.
 //!
 //! `@SEED` (decimal) changes the random choices of `office`, `soup` and `trees`; the same name
-//! always gives the same scene. Every generator builds a [`RawScene`] in metres that
+//! always gives the same scene. Each scene has a camera named "default" (first) and usually a
+//! few more viewpoints; the modules document materials, emission values and exposure. Every generator builds a [`RawScene`] in metres that
 //! [`Scene::from_raw`](super::Scene::from_raw) validates like any file.
 
 pub mod cornell;

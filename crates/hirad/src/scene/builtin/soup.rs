@@ -10,7 +10,8 @@
 //! `soup:N` asks for about N triangles: the number of bays is `clamp(round(N / 25000), 1, 12)`,
 //! then one edge length h (all primitives are tessellated into cells of edge ≤ h, the hall shell
 //! into cells of ≤ 4h) is chosen so that the triangle count is as close to N as the minimal
-//! tessellation allows (exact count computed before building). Then the triangles and the
+//! tessellation allows (exact count computed before building; one bay at its coarsest has
+//! 1,916 triangles, so smaller requests get that). Then the triangles and the
 //! vertices are shuffled in random order, and every triangle gets object id 0: no object
 //! structure is left, but the winding stays consistent (closed solids face outwards, the hall
 //! faces inwards). Random choices come from the seed. +Y up.

@@ -1,0 +1,250 @@
+//! Flags shared by every command that makes an image (`solve --image`, `render`, `reference`):
+//! camera overrides, output file and exposure, rasteriser options, and their parsers.
+//!
+//! `--up` takes either an axis (`y` or `z`: the scene's up axis, which also becomes the camera's
+//! up vector) or a vector `x,y,z` (the camera's up vector only), so that one flag serves both
+//! meanings the spec gives it. Commands that load a scene and flatten [`CameraArgs`] take the
+//! scene's up axis from [`CameraArgs::scene_up`] instead of flattening `info::LoadArgs`.
+
+use anyhow::Context;
+use glam::Vec3;
+use hirad::render::{BackFaces, CameraOverrides, CameraView, Image, RasterOptions};
+use hirad::scene::UpAxis;
+use std::path::{Path, PathBuf};
+
+/// The value of `--up`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum UpArg {
+    /// `y` or `z`: scene up axis (and camera up).
+    Axis(UpAxis),
+    /// `x,y,z`: camera up vector.
+    Vector(Vec3),
+}
+
+/// Parse `x,y,z` (three finite numbers separated by commas).
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected x,y,z, got '{s}'"));
+    }
+    let mut v = [0f32; 3];
+    for (i, p) in parts.iter().enumerate() {
+        v[i] = p
+            .parse::<f32>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number (in '{s}')"))?;
+    }
+    Ok(Vec3::from(v))
+}
+
+/// Parse `WxH` (two positive integers, at most 65536 each).
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .to_ascii_lowercase()
+        .split_once('x')
+        .map(|(a, b)| (a.trim().to_string(), b.trim().to_string()))
+        .ok_or_else(|| format!("expected WxH, got '{s}'"))?;
+    let num = |t: &str| {
+        t.parse::<u32>()
+            .ok()
+            .filter(|&n| (1..=65536).contains(&n))
+            .ok_or_else(|| format!("'{t}' is not a size between 1 and 65536 (in '{s}')"))
+    };
+    Ok((num(&w)?, num(&h)?))
+}
+
+/// Parse `--up`: `y`, `z` or `x,y,z`.
+pub fn parse_up(s: &str) -> Result<UpArg, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "y" | "+y" => Ok(UpArg::Axis(UpAxis::Y)),
+        "z" | "+z" => Ok(UpArg::Axis(UpAxis::Z)),
+        _ => parse_vec3(s).map(UpArg::Vector).map_err(|e| {
+            format!("--up takes an axis (y or z) or a vector x,y,z: {e}")
+        }),
+    }
+}
+
+/// Parse a vertical field of view in degrees, (0, 180).
+pub fn parse_fov(s: &str) -> Result<f32, String> {
+    s.trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|f| *f > 0.0 && *f < 180.0)
+        .ok_or_else(|| format!("fov must be a number of degrees in (0, 180), got '{s}'"))
+}
+
+/// Camera flags overriding the scene's default viewpoint.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct CameraArgs {
+    /// Eye position x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point looked at x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Up: an axis `y`/`z` (scene up axis and camera up) or a camera up vector x,y,z.
+    #[arg(long, value_parser = parse_up, allow_hyphen_values = true)]
+    pub up: Option<UpArg>,
+    /// Vertical field of view, degrees.
+    #[arg(long, value_parser = parse_fov)]
+    pub fov: Option<f32>,
+    /// Image size WxH in pixels.
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+}
+
+impl CameraArgs {
+    /// The scene up axis given by `--up y|z`, if any.
+    pub fn scene_up(&self) -> Option<UpAxis> {
+        match self.up {
+            Some(UpArg::Axis(a)) => Some(a),
+            _ => None,
+        }
+    }
+
+    /// The camera overrides of these flags.
+    pub fn overrides(&self) -> CameraOverrides {
+        CameraOverrides {
+            eye: self.eye,
+            target: self.target,
+            up: self.up.map(|u| match u {
+                UpArg::Axis(a) => a.vector(),
+                UpArg::Vector(v) => v,
+            }),
+            fov_deg: self.fov,
+            size: self.size,
+        }
+    }
+
+    /// `base` with the overrides applied, validated.
+    pub fn apply(&self, base: CameraView) -> anyhow::Result<CameraView> {
+        let mut v = base;
+        v.apply(&self.overrides());
+        v.validate()?;
+        Ok(v)
+    }
+}
+
+/// Output image flags.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct ImageArgs {
+    /// Output image: `.exr` (linear) or `.png` (sRGB), by extension; a directory (existing, or
+    /// a path without extension) receives both.
+    #[arg(long)]
+    pub image: Option<PathBuf>,
+    /// PNG exposure in stops (pixels × 2^exposure before the sRGB transfer and clamping).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub exposure: f32,
+}
+
+impl ImageArgs {
+    /// Write `img` to `--image` (or to `default_dir` when it is absent); `stem` names the files
+    /// written into a directory. Returns the files written.
+    pub fn write(&self, img: &Image, default_dir: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+        let target = self.image.clone().unwrap_or_else(|| default_dir.to_path_buf());
+        write_image(img, &target, self.exposure, stem)
+    }
+}
+
+/// Write an image to `path`: one file when it ends in `.exr` or `.png`, else `path` is a
+/// directory that receives `stem.exr` and `stem.png`.
+pub fn write_image(img: &Image, path: &Path, exposure: f32, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+    if !exposure.is_finite() {
+        anyhow::bail!(hirad::Error::Config(format!("exposure {exposure} is not finite")));
+    }
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let files = match ext.as_deref() {
+        Some("exr") | Some("png") => vec![path.to_path_buf()],
+        _ if path.extension().is_none() || path.is_dir() => {
+            vec![path.join(format!("{stem}.exr")), path.join(format!("{stem}.png"))]
+        }
+        _ => anyhow::bail!(hirad::Error::input(path, "image must end in .exr or .png (or be a directory)")),
+    };
+    for f in &files {
+        img.write(f, exposure)
+            .with_context(|| format!("writing {}", f.display()))?;
+    }
+    Ok(files)
+}
+
+/// Rasteriser flags (`render`, `solve --image`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct RasterArgs {
+    /// Supersampling: N×N samples per pixel, box-filtered.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub ss: u32,
+    /// Back faces: black (one-sided surfaces, as the path tracer), cull (meshes with explicit
+    /// back faces, e.g. two-sided solutions) or shade.
+    #[arg(long, default_value = "black", value_parser = parse_back_faces)]
+    pub back_faces: BackFaces,
+}
+
+impl Default for RasterArgs {
+    fn default() -> Self {
+        Self {
+            ss: 2,
+            back_faces: BackFaces::Black,
+        }
+    }
+}
+
+impl RasterArgs {
+    /// The library's rasteriser options.
+    pub fn options(&self) -> RasterOptions {
+        RasterOptions {
+            supersample: self.ss,
+            back_faces: self.back_faces,
+            ..Default::default()
+        }
+    }
+}
+
+fn parse_back_faces(s: &str) -> Result<BackFaces, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "black" => Ok(BackFaces::Black),
+        "cull" => Ok(BackFaces::Cull),
+        "shade" => Ok(BackFaces::Shade),
+        _ => Err(format!("back faces: black, cull or shade, got '{s}'")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsers() {
+        assert_eq!(parse_vec3("1, -2.5,3e1").unwrap(), Vec3::new(1.0, -2.5, 30.0));
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,2,nan").is_err());
+        assert!(parse_vec3("1,2,x").is_err());
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        assert_eq!(parse_size("8X8").unwrap(), (8, 8));
+        assert!(parse_size("0x5").is_err());
+        assert!(parse_size("640").is_err());
+        assert!(parse_size("-3x4").is_err());
+        assert_eq!(parse_up("z").unwrap(), UpArg::Axis(UpAxis::Z));
+        assert_eq!(parse_up("0,0,1").unwrap(), UpArg::Vector(Vec3::Z));
+        assert!(parse_up("w").is_err());
+        assert_eq!(parse_fov("45").unwrap(), 45.0);
+        assert!(parse_fov("180").is_err());
+        assert!(parse_fov("0").is_err());
+    }
+
+    #[test]
+    fn writes_one_file_or_both() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::new(3, 2, Vec3::splat(0.5));
+        let one = write_image(&img, &dir.path().join("a.png"), 0.0, "x").unwrap();
+        assert_eq!(one.len(), 1);
+        assert!(one[0].exists());
+        let both = write_image(&img, &dir.path().join("out"), 0.0, "ref").unwrap();
+        assert_eq!(both.len(), 2);
+        assert!(both.iter().all(|p| p.exists()));
+        assert!(write_image(&img, &dir.path().join("a.jpg"), 0.0, "x").is_err());
+    }
+}

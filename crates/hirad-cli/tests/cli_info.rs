@@ -1,0 +1,106 @@
+//! `hirad info` and `hirad scene` end to end: exit codes, error messages, JSON numbers.
+
+use std::process::Command;
+
+fn hirad() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hirad"))
+}
+
+fn real(name: &str) -> String {
+    format!(
+        "{}/../../../shared/scenes/{name}/{name}.obj",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+#[test]
+fn missing_file_exits_2_and_names_it() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("missing.obj");
+    let out = hirad().arg("info").arg(&p).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("missing.obj"), "{err}");
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn bad_line_exits_2_with_file_and_line() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("bad.obj");
+    std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 oops\nf 1 2 3\n").unwrap();
+    let out = hirad().arg("info").arg(&p).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.obj:3:"), "{err}");
+    let out = hirad().args(["info", "no_such_builtin"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn info_json_on_a_real_scene() {
+    let out = hirad()
+        .args([
+            "info",
+            &real("graz_office"),
+            "--json",
+            "--max-reflectance",
+            "0.9",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["triangles"], 26_928);
+    assert_eq!(v["vertices"], 16_949);
+    assert_eq!(v["materials"], 52);
+    assert_eq!(v["emitter_triangles"], 16);
+    assert_eq!(v["up"], "z");
+    assert_eq!(v["degenerate_dropped"], 0);
+    assert!(v["total_area"].as_f64().unwrap() > 300.0);
+    assert!(v["load_seconds"].as_f64().unwrap() >= 0.0);
+    // `--up` overrides the file's header; the human table prints it.
+    let out = hirad()
+        .args(["info", &real("graz_office"), "--up", "y"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("+Y") && text.contains("26928"), "{text}");
+}
+
+#[test]
+fn scene_export_then_info() {
+    let d = tempfile::tempdir().unwrap();
+    for ext in ["obj", "glb"] {
+        let p = d.path().join(format!("cornell.{ext}"));
+        let out = hirad()
+            .args(["scene", "cornell", "--out"])
+            .arg(&p)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let a = hirad()
+            .args(["info", "cornell", "--json"])
+            .output()
+            .unwrap();
+        let b = hirad().arg("info").arg(&p).arg("--json").output().unwrap();
+        let a: serde_json::Value = serde_json::from_slice(&a.stdout).unwrap();
+        let b: serde_json::Value = serde_json::from_slice(&b.stdout).unwrap();
+        for k in ["triangles", "materials", "objects", "emitter_triangles"] {
+            assert_eq!(a[k], b[k], "{ext} {k}");
+        }
+        let (ta, tb) = (
+            a["total_area"].as_f64().unwrap(),
+            b["total_area"].as_f64().unwrap(),
+        );
+        assert!((ta - tb).abs() < 1e-5 * ta, "{ext}: {ta} vs {tb}");
+    }
+}

@@ -1,0 +1,109 @@
+//! Solver tests on built-in scenes (spec/radiosity.md correctness tests 1 and 4): the furnace
+//! for every clustering strategy, and convergence on the Cornell box as ε → 0.
+
+use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::progress::NoProgress;
+use hirad::radiosity::{solve, Solution, SolverConfig};
+use hirad::scene::{Scene, SceneOptions};
+
+/// Largest relative deviation of any root surface radiosity from E/(1 − ρ) = 2.
+fn furnace_error(sol: &Solution) -> f64 {
+    sol.elements
+        .roots()
+        .map(|r| {
+            let b = sol.elements.b[r as usize];
+            ((b - glam::DVec3::splat(2.0)).abs() / 2.0).max_element()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn furnace_every_strategy() {
+    let scene = Scene::load("furnace", &SceneOptions::default()).unwrap();
+    let mut coarse_sum = 0.0;
+    let mut fine_sum = 0.0;
+    for s in Strategy::ALL {
+        let tree = ClusterTree::build(&scene, s, &ClusterConfig::default());
+        let base = SolverConfig::default();
+        let sol = solve(&scene, &tree, &base, &NoProgress).unwrap();
+        let e0 = furnace_error(&sol);
+        let fine = SolverConfig {
+            eps_rel: base.eps_rel / 4.0,
+            ..base.clone()
+        };
+        let sol_f = solve(&scene, &tree, &fine, &NoProgress).unwrap();
+        let e1 = furnace_error(&sol_f);
+        println!(
+            "furnace {:>6}: eps {:.3e} max error {:.3}% ({} links, {:.0}% cluster energy); \
+             eps/4 max error {:.3}% ({} links)",
+            s.name(),
+            sol.stats.eps,
+            100.0 * e0,
+            sol.stats.links,
+            sol.stats.cluster_energy_percent,
+            100.0 * e1,
+            sol_f.stats.links
+        );
+        assert!(sol.stats.converged, "{s}: not converged");
+        assert!(e0 < 0.02, "{s}: furnace error {e0}");
+        coarse_sum += e0;
+        fine_sum += e1;
+    }
+    println!(
+        "mean max error: default eps {:.3}%, eps/4 {:.3}%",
+        100.0 * coarse_sum / 7.0,
+        100.0 * fine_sum / 7.0
+    );
+    assert!(fine_sum < coarse_sum, "error does not shrink with eps");
+}
+
+/// Area-weighted mean relative difference of per-triangle radiosity (all channels).
+fn rel_diff(a: &Solution, b: &Solution, scene: &Scene) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for t in 0..scene.num_triangles() as u32 {
+        let w = scene.areas[t as usize] as f64;
+        let x = a.triangle_radiosity(t, false);
+        let y = b.triangle_radiosity(t, false);
+        num += w * (x - y).abs().element_sum();
+        den += w * y.abs().element_sum();
+    }
+    num / den
+}
+
+#[test]
+fn cornell_converges_as_eps_shrinks() {
+    let scene = Scene::load("cornell", &SceneOptions::default()).unwrap();
+    let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+    let cfg = |eps_rel: f64| SolverConfig {
+        eps_rel,
+        min_area_rel: 2e-5,
+        ..SolverConfig::default()
+    };
+    let reference = solve(&scene, &tree, &cfg(0.002), &NoProgress).unwrap();
+    let epss = [0.32, 0.16, 0.08, 0.04, 0.02];
+    let mut errs = Vec::new();
+    for &e in &epss {
+        let sol = solve(&scene, &tree, &cfg(e), &NoProgress).unwrap();
+        let err = rel_diff(&sol, &reference, &scene);
+        println!(
+            "cornell eps_rel {e}: {} links, error vs eps_rel 0.002: {:.4}",
+            sol.stats.links, err
+        );
+        errs.push(err);
+    }
+    // Least-squares slope of log(error) against log(eps).
+    let n = epss.len() as f64;
+    let xs: Vec<f64> = epss.iter().map(|e| e.ln()).collect();
+    let ys: Vec<f64> = errs.iter().map(|e| e.ln()).collect();
+    let mx = xs.iter().sum::<f64>() / n;
+    let my = ys.iter().sum::<f64>() / n;
+    let slope = xs
+        .iter()
+        .zip(&ys)
+        .map(|(x, y)| (x - mx) * (y - my))
+        .sum::<f64>()
+        / xs.iter().map(|x| (x - mx) * (x - mx)).sum::<f64>();
+    println!("cornell convergence: fitted slope d log(error) / d log(eps) = {slope:.3}");
+    assert!(slope > 0.2, "error does not decrease with eps (slope {slope})");
+    assert!(errs[4] < 0.5 * errs[0], "{errs:?}");
+}
