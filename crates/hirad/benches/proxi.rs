@@ -46,6 +46,11 @@ fn generated(n: usize, seed: u64) -> Prims {
         }
     }
     tris.truncate(n);
+    prims_from(&tris)
+}
+
+fn prims_from(tris: &[[Vec3; 3]]) -> Prims {
+    let n = tris.len();
     Prims {
         bbox: tris.iter().map(|t| Aabb::from_points(t.iter())).collect(),
         centroid: tris.iter().map(|t| (t[0] + t[1] + t[2]) / 3.0).collect(),
@@ -169,6 +174,43 @@ fn main() {
         if want(name) {
             if let Some(p) = real(name) {
                 bench_scene(name, &p, 3);
+            }
+        }
+    }
+    if want("degenerate") {
+        // Pathological inputs: everything at one point (one grid cell), zero-area slivers on a
+        // line, and tiny far-apart surfaces that must rise through many levels.
+        let cfg = ClusterConfig::default();
+        for n in [250_000usize, 1_000_000] {
+            let p = Vec3::new(1.0, 2.0, 3.0);
+            let point = prims_from(&vec![[p, p, p]; n]);
+            let line = prims_from(
+                &(0..n)
+                    .map(|i| {
+                        let a = Vec3::new(i as f32 * 1e-3, 0.0, 0.0);
+                        [a, a + Vec3::X * 5e-4, a + Vec3::X * 1e-3]
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let mut r = SplitMix64::new(3);
+            let sparse = prims_from(
+                &(0..n)
+                    .map(|_| {
+                        let a = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 1000.0;
+                        [a, a + Vec3::X * 1e-4, a + Vec3::Y * 1e-4]
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            for (name, prims) in [
+                ("one-point", point),
+                ("line", line),
+                ("sparse-tiny", sparse),
+            ] {
+                let (t, tree) = time(1, 1, &|| proxi::build(&prims, &cfg));
+                println!(
+                    "{{\"degenerate\":\"{name}\",\"triangles\":{n},\"proxi_seconds_1_thread\":{t:.4},\"stats\":{}}}",
+                    stats(&prims, tree, Strategy::Proxi)
+                );
             }
         }
     }

@@ -92,5 +92,43 @@ fn bench_pathtrace(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_raster, bench_pathtrace);
+/// The real bathroom scene (379,844 triangles) with flat per-triangle colours ρ, at 1024².
+fn bench_raster_bathroom(c: &mut Criterion) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/scenes/bathroom/bathroom.obj"
+    );
+    let scene = match Scene::load(path, &SceneOptions::default()) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("raster/bathroom not run: {e}");
+            return;
+        }
+    };
+    let rho: Vec<Vec3> = (0..scene.num_triangles())
+        .map(|i| scene.material_of(i).rho)
+        .collect();
+    let mesh = RasterMesh {
+        positions: &scene.positions,
+        triangles: &scene.triangles,
+        colors: MeshColors::PerTriangle(&rho),
+    };
+    let mut view = CameraView::from_camera(&scene.default_camera());
+    view.width = 1024;
+    view.height = 1024;
+    let opts = RasterOptions::default();
+    let mut g = c.benchmark_group("raster");
+    g.sample_size(10);
+    g.bench_function("bathroom_380k_tris_1024x1024_flat", |b| {
+        b.iter(|| black_box(rasterize(&mesh, &view, &opts).unwrap()))
+    });
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_raster,
+    bench_raster_bathroom,
+    bench_pathtrace
+);
 criterion_main!(benches);

@@ -436,6 +436,61 @@ fn degenerate_scenes() {
 }
 
 #[test]
+fn depth_limits() {
+    // Exponentially spaced surfaces: SAH would peel a few per level; the median fallback
+    // bounds the depth by max_depth/2 + log2(n).
+    let tris: Vec<[Vec3; 3]> = (0..400)
+        .map(|k| {
+            let x = 1.2f32.powi(k - 200);
+            let o = Vec3::new(x, 0.0, 0.0);
+            [o, o + Vec3::Y * 1e-3, o + Vec3::Z * 1e-3]
+        })
+        .collect();
+    let prims = prims_of(&tris);
+    let cfg = ClusterConfig::default();
+    for s in Strategy::ALL {
+        let t = ClusterTree::build_prims(&prims, s, &cfg);
+        assert_eq!(t.validate(&prims), Ok(()), "{s}");
+        let d = t.nodes.iter().map(|n| n.depth).max().unwrap();
+        assert!(d as usize <= cfg.max_depth + 9, "{s}: depth {d}");
+    }
+    let sah = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg);
+    assert!(sah.nodes.iter().all(|n| n.num_surfaces <= 4));
+    // SAH alone needs 27 levels here; with max_depth 16 the median splits from depth 8 on
+    // bound it by 8 + ⌈log2 400⌉.
+    let d = |t: &ClusterTree| t.nodes.iter().map(|n| n.depth).max().unwrap();
+    assert_eq!(d(&sah), 27);
+    let cfg16 = ClusterConfig {
+        max_depth: 16,
+        ..Default::default()
+    };
+    let sah16 = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg16);
+    assert_eq!(sah16.validate(&prims), Ok(()));
+    assert!(d(&sah16) <= 8 + 9, "{}", d(&sah16));
+    assert!(sah16.nodes.iter().all(|n| n.num_surfaces <= 4));
+    // A tight depth limit: kdt/obt/okdt/tf-oct stop there and say so.
+    let shallow = ClusterConfig {
+        max_depth: 2,
+        ..Default::default()
+    };
+    let prims = prims_of(&soup(3, 500));
+    for s in [
+        Strategy::Kdt,
+        Strategy::Obt,
+        Strategy::Okdt,
+        Strategy::TfOct,
+    ] {
+        let t = ClusterTree::build_prims(&prims, s, &shallow);
+        assert_eq!(t.validate(&prims), Ok(()), "{s}");
+        assert!(t.nodes.iter().all(|n| n.depth <= 2), "{s}");
+        assert_eq!(t.notes.len(), 1, "{s}: {:?}", t.notes);
+        assert!(t.notes[0].contains("max_depth 2"), "{s}: {:?}", t.notes);
+    }
+    let t = ClusterTree::build_prims(&prims, Strategy::Kdt, &cfg);
+    assert!(t.notes.is_empty(), "{:?}", t.notes);
+}
+
+#[test]
 fn thread_count_does_not_change_trees() {
     // Large enough for the parallel subtree builds to kick in.
     let prims = prims_of(&soup(7, 60_000));

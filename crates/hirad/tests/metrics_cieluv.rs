@@ -2,8 +2,8 @@
 
 use glam::{DVec3, Vec3};
 use hirad::metrics::{
-    compare, compare_with_white, delta_e_map, heatmap, white_luminance, xyz_to_luv,
-    LuvConverter, D65,
+    compare, compare_with_white, delta_e_map, heatmap, white_luminance, xyz_to_luv, LuvConverter,
+    D65,
 };
 use hirad::render::Image;
 use hirad::rng::SplitMix64;
@@ -32,7 +32,10 @@ fn published_srgb_primaries_in_cieluv() {
     ];
     for (rgb, want) in cases {
         let got = c.luv(rgb);
-        assert!((got - want).abs().max_element() < 0.01, "{rgb}: {got} vs {want}");
+        assert!(
+            (got - want).abs().max_element() < 0.01,
+            "{rgb}: {got} vs {want}"
+        );
     }
     // 18% grey: L* = 116·0.18^⅓ − 16 = 49.496.
     assert!((c.luv(Vec3::splat(0.18)).x - 49.4961).abs() < 1e-3);
@@ -107,7 +110,11 @@ fn uniform_scaling_error_is_analytic() {
     let a = Image::new(8, 8, Vec3::splat(0.3));
     let e = compare(&a, &r).unwrap();
     let want = 116.0 - 116.0 * 0.5f64.cbrt();
-    assert!((e.rms_delta_e - want).abs() < 1e-4, "{} vs {want}", e.rms_delta_e);
+    assert!(
+        (e.rms_delta_e - want).abs() < 1e-4,
+        "{} vs {want}",
+        e.rms_delta_e
+    );
     assert!((e.max_delta_e - want).abs() < 1e-4);
     assert!((e.rel_rmse - 0.5).abs() < 1e-6);
     assert!((e.white_y - 0.6).abs() < 1e-6);
@@ -184,8 +191,16 @@ fn heatmap_scale() {
     let h = heatmap(&de, 16, 8, max).unwrap();
     // Brightness of the false colour grows with ΔE.
     let (imin, imax) = (
-        de.iter().enumerate().min_by(|x, y| x.1.total_cmp(y.1)).unwrap().0,
-        de.iter().enumerate().max_by(|x, y| x.1.total_cmp(y.1)).unwrap().0,
+        de.iter()
+            .enumerate()
+            .min_by(|x, y| x.1.total_cmp(y.1))
+            .unwrap()
+            .0,
+        de.iter()
+            .enumerate()
+            .max_by(|x, y| x.1.total_cmp(y.1))
+            .unwrap()
+            .0,
     );
     let lum = |v: Vec3| v.x + v.y + v.z;
     assert!(lum(h.pixels[imax]) > lum(h.pixels[imin]));

@@ -139,7 +139,8 @@ fn random_segments(scene: &Scene, seed: u64, n: usize) -> Vec<Segment> {
                     (g.next_u64() % 19) as f32 * 0.25 - 0.25,
                 )
             } else {
-                b.min - 0.5 + Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * (b.extent() + 1.0)
+                b.min - 0.5
+                    + Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * (b.extent() + 1.0)
             }
         };
         let p = pt(&mut g);
@@ -208,7 +209,10 @@ fn hand_built_trees_hit_something() {
     let occ = check_against_brute(&scene, &tree, &segs);
     assert!(occ > 200 && occ < 1900, "{occ}");
     // The tree has inner surfaces and several levels.
-    assert!(tree.nodes.iter().any(|n| n.num_children > 0 && n.num_surfaces > 0));
+    assert!(tree
+        .nodes
+        .iter()
+        .any(|n| n.num_children > 0 && n.num_surfaces > 0));
     assert!(tree.nodes.iter().map(|n| n.depth).max().unwrap() >= 2);
 }
 
@@ -267,7 +271,10 @@ fn watertight_on_shared_edges_and_vertices() {
             // Long ray through the target: its exact crossing point is within rounding of an
             // edge or vertex of the mesh.
             let d = t - o;
-            assert!(rc.occluded(o, d, 0.0, 2.0), "ray {k} slipped through at {t}");
+            assert!(
+                rc.occluded(o, d, 0.0, 2.0),
+                "ray {k} slipped through at {t}"
+            );
             assert!(rc.occluded_brute(o, d, 0.0, 2.0));
             let h = rc.closest(o, d, 0.0, 2.0).unwrap();
             assert_eq!(Some(h), rc.closest_brute(o, d, 0.0, 2.0));
@@ -305,12 +312,7 @@ fn watertight_on_shared_edges_and_vertices() {
 fn shared_edge_hit_counts() {
     // Square split along its diagonal.
     let scene = scene_from(
-        vec![
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::Y,
-        ],
+        vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
         vec![[0, 1, 2], [0, 2, 3]],
     );
     let count = |o: Vec3, d: Vec3| {

@@ -59,7 +59,12 @@ fn single_node(scene: &Scene) -> ClusterTree {
         children: vec![],
         surfaces: (0..scene.num_triangles() as u32).collect(),
     });
-    ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default())
+    ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    )
 }
 
 /// Regular grid of `nx × ny × nz` cells over `region`, each cell a tight cluster of the
@@ -92,7 +97,12 @@ fn grid_tree(scene: &Scene, region: Aabb, dims: [usize; 3]) -> ClusterTree {
         children,
         surfaces: vec![],
     });
-    let t = ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default());
+    let t = ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    );
     t.validate(&prims).unwrap();
     t
 }
@@ -196,8 +206,16 @@ fn symmetric_and_exact_at_zero_ratio() {
     let rc = RayCaster::new(&scene, &tree);
     let mut queries = Vec::new();
     for _ in 0..400 {
-        let p = Vec3::new(g.next_f32() * 4.0 - 1.0, g.next_f32() * 4.0 - 1.0, -1.0 - g.next_f32());
-        let q = Vec3::new(g.next_f32() * 4.0 - 1.0, g.next_f32() * 4.0 - 1.0, 2.0 + g.next_f32());
+        let p = Vec3::new(
+            g.next_f32() * 4.0 - 1.0,
+            g.next_f32() * 4.0 - 1.0,
+            -1.0 - g.next_f32(),
+        );
+        let q = Vec3::new(
+            g.next_f32() * 4.0 - 1.0,
+            g.next_f32() * 4.0 - 1.0,
+            2.0 + g.next_f32(),
+        );
         queries.push(VolumeQuery {
             p,
             q,
@@ -281,7 +299,10 @@ fn end_point_clusters_are_excluded() {
     let mut tris = Vec::new();
     let mut groups = Vec::new();
     for cx in [0.0f32, 5.0, 10.0] {
-        let region = Aabb::new(Vec3::new(cx - 0.5, -0.5, -0.5), Vec3::new(cx + 0.5, 0.5, 0.5));
+        let region = Aabb::new(
+            Vec3::new(cx - 0.5, -0.5, -0.5),
+            Vec3::new(cx + 0.5, 0.5, 0.5),
+        );
         let s = random_polygons(&mut g, 200, 0.05, region);
         let base = pos.len() as u32;
         let first = tris.len() as u32;
@@ -309,7 +330,12 @@ fn end_point_clusters_are_excluded() {
         children,
         surfaces: vec![],
     });
-    let tree = ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default());
+    let tree = ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    );
     let vc = VolumeCaster::new(&scene, &tree);
     // Node ids: root 0, then A, M, B in order.
     let (a, m, bb) = (1u32, 2u32, 3u32);

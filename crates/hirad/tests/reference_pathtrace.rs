@@ -5,9 +5,9 @@ mod reference_common;
 
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::ray::RayCaster;
 use hirad::render::{PathTracer, ReferenceOptions};
 use hirad::rng::SplitMix64;
-use hirad::ray::RayCaster;
 use hirad::scene::{Material, RawScene, Scene, SceneOptions, Sun};
 use reference_common::{reference, scene, view};
 use std::f64::consts::PI;
@@ -134,7 +134,10 @@ fn sun_and_sky_on_a_floor() {
     // Uniform sky L over the upper hemisphere: irradiance π·L, radiance ρ·L.
     let s = floor_scene(|r| r.sky = Some(Vec3::new(1.0, 2.0, 4.0)));
     let got = mean_radiance(&s, &opts, Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y, 100);
-    assert!((got - Vec3::new(0.5, 1.0, 2.0)).abs().max_element() < 1e-5, "{got}");
+    assert!(
+        (got - Vec3::new(0.5, 1.0, 2.0)).abs().max_element() < 1e-5,
+        "{got}"
+    );
 }
 
 #[test]

@@ -41,7 +41,12 @@ fn exact_furnace_solution_matches_the_path_tracer() {
         ..mesh
     };
     let e2 = solution_error(&bright, &v, &img);
-    assert!(e2.rms_delta_e > e.rms_delta_e + 1.0, "{} vs {}", e2.rms_delta_e, e.rms_delta_e);
+    assert!(
+        e2.rms_delta_e > e.rms_delta_e + 1.0,
+        "{} vs {}",
+        e2.rms_delta_e,
+        e.rms_delta_e
+    );
 }
 
 #[test]
@@ -58,8 +63,10 @@ fn cornell_reference_noise_shrinks_with_spp() {
         let (b, _) = reference(&s, &v, &opts(2));
         compare(&a, &b).unwrap().rel_rmse
     };
-    let (n4, n64) = (noise(4), noise(64));
-    println!("cornell seed-to-seed rel RMSE: 4 spp {n4:.4}, 64 spp {n64:.4}, ratio {:.2}", n4 / n64);
-    // 16× the samples: 4× less noise (√16), with slack for fireflies.
-    assert!(n4 / n64 > 2.5 && n4 / n64 < 6.0);
+    let (n16, n64) = (noise(16), noise(64));
+    let ratio = n16 / n64;
+    println!("cornell seed-to-seed rel RMSE: 16 spp {n16:.4}, 64 spp {n64:.4}, ratio {ratio:.2}");
+    // 4× the samples: 2× less noise (√4), with slack for the heavy tail of few-sample pixels.
+    assert!(ratio > 1.5 && ratio < 3.5, "{ratio}");
+    assert!(n64 < 0.1);
 }

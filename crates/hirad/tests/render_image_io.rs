@@ -93,7 +93,9 @@ fn downsample_box_filter() {
     let mut img = Image::new(4, 2, Vec3::ZERO);
     img.set(0, 0, Vec3::splat(4.0));
     img.set(3, 1, Vec3::splat(8.0));
-    let d = img.downsample(2);
+    let d = img.downsample(2).unwrap();
+    assert!(img.downsample(3).is_err());
+    assert!(img.downsample(0).is_err());
     assert_eq!((d.width, d.height), (2, 1));
     assert_eq!(d.get(0, 0), Vec3::ONE);
     assert_eq!(d.get(1, 0), Vec3::splat(2.0));

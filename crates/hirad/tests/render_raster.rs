@@ -4,8 +4,7 @@
 use glam::Vec3;
 use hirad::render::raster::{rasterize_with_stats, RasterStats};
 use hirad::render::{
-    rasterize, render_solution, BackFaces, CameraView, Image, MeshColors, RasterMesh,
-    RasterOptions,
+    rasterize, render_solution, BackFaces, CameraView, Image, MeshColors, RasterMesh, RasterOptions,
 };
 use hirad::rng::SplitMix64;
 use hirad::scene::export::ColoredMesh;
@@ -76,7 +75,12 @@ fn rotated_quad_coverage_is_its_area_within_the_edge_band() {
     // image (corners at 85 px from the centre).
     let (s, c) = 30f32.to_radians().sin_cos();
     let rot = |x: f32, y: f32| Vec3::new(c * x - s * y, s * x + c * y, 0.0);
-    let p = vec![rot(-3.0, -3.0), rot(3.0, -3.0), rot(3.0, 3.0), rot(-3.0, 3.0)];
+    let p = vec![
+        rot(-3.0, -3.0),
+        rot(3.0, -3.0),
+        rot(3.0, 3.0),
+        rot(-3.0, 3.0),
+    ];
     let t = vec![[0, 1, 2], [0, 2, 3]];
     let col = white(4);
     let mesh = RasterMesh {
@@ -427,7 +431,11 @@ fn same_image_with_one_and_two_threads() {
     };
     let a = run(1);
     let b = run(2);
-    assert!(a.pixels.iter().zip(&b.pixels).all(|(x, y)| x.to_array() == y.to_array()));
+    assert!(a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .all(|(x, y)| x.to_array() == y.to_array()));
     assert!(a.pixels.iter().filter(|p| p.max_element() > 0.0).count() > 1000);
 }
 

@@ -362,3 +362,78 @@ rho = [0.8, 0.8, 0.8]
     assert_eq!(s.report.clamped_materials, vec!["green".to_string()]);
     assert_eq!(s.normals[s.num_triangles() - 1], -Vec3::Z);
 }
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A polygon soup: vertices and faces of 3 to 6 corners, with a style per corner
+    /// (0: `v`, 1: `v/t`, 2: `v//n`, 3: `v/t/n`, 4: negative relative index).
+    fn soup() -> impl Strategy<Value = (Vec<[f32; 3]>, Vec<Vec<(u32, u8)>>)> {
+        prop::collection::vec(prop::array::uniform3(-1e3f32..1e3), 3..40).prop_flat_map(|v| {
+            let n = v.len() as u32;
+            let face = prop::collection::vec((0..n, 0u8..5), 3..7);
+            (Just(v), prop::collection::vec(face, 1..30))
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The fast OBJ parser reads every corner style (mixed within a face, inline comments)
+        /// and fan-triangulates polygons like a direct construction; tobj agrees on the
+        /// triangles' corners of the same soup written with plain indices.
+        #[test]
+        fn obj_corner_styles_and_fans((verts, faces) in soup()) {
+            let d = tempfile::tempdir().unwrap();
+            let mut text = String::from("# soup\n");
+            for v in &verts {
+                text += &format!("v\t{} {}  {}\n", v[0], v[1], v[2]);
+            }
+            text += "vt 0 0\nvn 0 0 1\ng soup\n";
+            let nv = verts.len() as i64;
+            let mut want = Vec::new();
+            for f in &faces {
+                text += "f";
+                for &(i, style) in f {
+                    text += &match style {
+                        0 => format!(" {}", i + 1),
+                        1 => format!(" {}/1", i + 1),
+                        2 => format!(" {}//1", i + 1),
+                        3 => format!(" {}/1/1", i + 1),
+                        _ => format!(" {}", i as i64 - nv),
+                    };
+                }
+                text += " # face\n";
+                for k in 1..f.len() - 1 {
+                    want.push([f[0].0, f[k].0, f[k + 1].0]);
+                }
+            }
+            let p = d.path().join("soup.obj");
+            std::fs::write(&p, &text).unwrap();
+            let raw = obj::load(&p).unwrap();
+            prop_assert_eq!(&raw.triangles, &want);
+            let got: Vec<[f32; 3]> = raw.positions.iter().map(|p| p.to_array()).collect();
+            prop_assert_eq!(&got, &verts);
+            prop_assert_eq!(raw.objects, vec!["soup".to_string()]);
+            // tobj rejects faces mixing corner styles: give it plain indices.
+            let mut plain = String::new();
+            for v in &verts {
+                plain += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+            }
+            for f in &faces {
+                let c: Vec<String> = f.iter().map(|(i, _)| (i + 1).to_string()).collect();
+                plain += &format!("f {}\n", c.join(" "));
+            }
+            let p = d.path().join("plain.obj");
+            std::fs::write(&p, &plain).unwrap();
+            prop_assert_eq!(&obj::load(&p).unwrap().triangles, &want);
+            let t = obj::load_with_tobj(&p).unwrap();
+            prop_assert_eq!(t.triangles.len(), want.len());
+            for (i, tri) in want.iter().enumerate() {
+                let a = tri.map(|v| verts[v as usize]);
+                let b = t.triangles[i].map(|v| t.positions[v as usize].to_array());
+                prop_assert_eq!(a, b);
+            }
+        }
+    }
+}

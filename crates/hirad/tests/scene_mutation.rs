@@ -311,3 +311,34 @@ fn generated_gltf_ply_toml_never_panic() {
     total += n;
     assert!(total >= 300, "{total}");
 }
+
+/// The tobj fallback path (guarded by `catch_unwind`) on mutated copies of a real prefix.
+#[test]
+fn tobj_fallback_never_panics() {
+    let d = tempfile::tempdir().unwrap();
+    let src = real_dir("graz_office");
+    let obj = std::fs::read(src.join("graz_office.obj")).unwrap();
+    std::fs::copy(
+        src.join("graz_office.mtl"),
+        d.path().join("graz_office.mtl"),
+    )
+    .unwrap();
+    let prefix = loadable_prefix(&obj);
+    let p = d.path().join("graz_office.obj");
+    let mut rng = SplitMix64::new(31);
+    let mut ok = 0;
+    for k in 0..60 {
+        let m = if k == 0 {
+            prefix.clone()
+        } else {
+            mutate(&mut rng, &prefix)
+        };
+        std::fs::write(&p, &m).unwrap();
+        let r = std::panic::catch_unwind(|| hirad::scene::obj::load_with_tobj(&p));
+        match r {
+            Ok(res) => ok += res.is_ok() as usize,
+            Err(_) => panic!("load_with_tobj panicked on mutation {k}"),
+        }
+    }
+    assert!(ok > 0 && ok < 60, "{ok} of 60 loaded");
+}

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, default_value = "all")]
     pub clustering: String,
     /// OBT/OKDT/OKDT-P overlap parameter λ ≥ 0 (default 0.25).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub lambda: Option<f32>,
     /// OKDT-P: clusters with more surfaces attached directly are re-clustered (default 12).
     #[arg(long)]
@@ -266,5 +266,26 @@ fn print_table(r: &Report) {
         if let Some(d) = &row.dump {
             println!("         dump: {d}");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_and_dump_names() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(&[]), 0.0);
+        let p = Path::new("out/boxes.ply");
+        assert_eq!(
+            dump_path(p, Strategy::TfOct, false),
+            PathBuf::from("out/boxes.ply")
+        );
+        assert_eq!(
+            dump_path(p, Strategy::TfOct, true),
+            PathBuf::from("out/boxes.tf-oct.ply")
+        );
     }
 }

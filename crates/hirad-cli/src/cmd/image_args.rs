@@ -59,9 +59,9 @@ pub fn parse_up(s: &str) -> Result<UpArg, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "y" | "+y" => Ok(UpArg::Axis(UpAxis::Y)),
         "z" | "+z" => Ok(UpArg::Axis(UpAxis::Z)),
-        _ => parse_vec3(s).map(UpArg::Vector).map_err(|e| {
-            format!("--up takes an axis (y or z) or a vector x,y,z: {e}")
-        }),
+        _ => parse_vec3(s)
+            .map(UpArg::Vector)
+            .map_err(|e| format!("--up takes an axis (y or z) or a vector x,y,z: {e}")),
     }
 }
 
@@ -141,17 +141,32 @@ pub struct ImageArgs {
 impl ImageArgs {
     /// Write `img` to `--image` (or to `default_dir` when it is absent); `stem` names the files
     /// written into a directory. Returns the files written.
-    pub fn write(&self, img: &Image, default_dir: &Path, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
-        let target = self.image.clone().unwrap_or_else(|| default_dir.to_path_buf());
+    pub fn write(
+        &self,
+        img: &Image,
+        default_dir: &Path,
+        stem: &str,
+    ) -> anyhow::Result<Vec<PathBuf>> {
+        let target = self
+            .image
+            .clone()
+            .unwrap_or_else(|| default_dir.to_path_buf());
         write_image(img, &target, self.exposure, stem)
     }
 }
 
 /// Write an image to `path`: one file when it ends in `.exr` or `.png`, else `path` is a
 /// directory that receives `stem.exr` and `stem.png`.
-pub fn write_image(img: &Image, path: &Path, exposure: f32, stem: &str) -> anyhow::Result<Vec<PathBuf>> {
+pub fn write_image(
+    img: &Image,
+    path: &Path,
+    exposure: f32,
+    stem: &str,
+) -> anyhow::Result<Vec<PathBuf>> {
     if !exposure.is_finite() {
-        anyhow::bail!(hirad::Error::Config(format!("exposure {exposure} is not finite")));
+        anyhow::bail!(hirad::Error::Config(format!(
+            "exposure {exposure} is not finite"
+        )));
     }
     let ext = path
         .extension()
@@ -160,9 +175,15 @@ pub fn write_image(img: &Image, path: &Path, exposure: f32, stem: &str) -> anyho
     let files = match ext.as_deref() {
         Some("exr") | Some("png") => vec![path.to_path_buf()],
         _ if path.extension().is_none() || path.is_dir() => {
-            vec![path.join(format!("{stem}.exr")), path.join(format!("{stem}.png"))]
+            vec![
+                path.join(format!("{stem}.exr")),
+                path.join(format!("{stem}.png")),
+            ]
         }
-        _ => anyhow::bail!(hirad::Error::input(path, "image must end in .exr or .png (or be a directory)")),
+        _ => anyhow::bail!(hirad::Error::input(
+            path,
+            "image must end in .exr or .png (or be a directory)"
+        )),
     };
     for f in &files {
         img.write(f, exposure)
@@ -218,7 +239,10 @@ mod tests {
 
     #[test]
     fn parsers() {
-        assert_eq!(parse_vec3("1, -2.5,3e1").unwrap(), Vec3::new(1.0, -2.5, 30.0));
+        assert_eq!(
+            parse_vec3("1, -2.5,3e1").unwrap(),
+            Vec3::new(1.0, -2.5, 30.0)
+        );
         assert!(parse_vec3("1,2").is_err());
         assert!(parse_vec3("1,2,nan").is_err());
         assert!(parse_vec3("1,2,x").is_err());

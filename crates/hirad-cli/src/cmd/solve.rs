@@ -1,13 +1,201 @@
-//! Subcommand (not implemented yet).
+//! `hirad solve SCENE`: hierarchical radiosity with clustering; writes `solution.glb`,
+//! `solution.ply` (per-vertex radiosity) and `stats.json` into `--out`, prints a summary (or the
+//! statistics as JSON with `--json` / `--bench`).
 
+use crate::progress::Bars;
 use crate::Global;
+use anyhow::Context;
+use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::progress::{NoProgress, Progress};
+use hirad::radiosity::config::parse_bytes;
+use hirad::radiosity::{output, solve_cancellable, Oracle, Reception, SolverConfig, VisibilityMode};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Input: a file path or a built-in scene name.
-    pub input: String,
+    /// Scene: a file path or a built-in name.
+    pub scene: String,
+    #[command(flatten)]
+    pub load: super::info::LoadArgs,
+    /// Clustering strategy (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah).
+    #[arg(long, default_value = "proxi")]
+    pub clustering: String,
+    /// Solver preset the other flags override (fast, default, fine, reference).
+    #[arg(long, default_value = "default")]
+    pub preset: String,
+    /// Refinement oracle: bf or error.
+    #[arg(long)]
+    pub refine: Option<String>,
+    /// Absolute refinement threshold ε in W/m² (default: --eps-rel × emitted power / area).
+    #[arg(long)]
+    pub eps: Option<f64>,
+    /// Refinement threshold relative to the scene's emitted power per unit area.
+    #[arg(long)]
+    pub eps_rel: Option<f64>,
+    /// Give every surface a back face with its own radiosity.
+    #[arg(long)]
+    pub two_sided: bool,
+    /// Visibility: rays, volume or none.
+    #[arg(long)]
+    pub visibility: Option<String>,
+    /// Shadow rays per link.
+    #[arg(long)]
+    pub shadow_rays: Option<u32>,
+    /// Minimum element area (scene units²; default 1e-4 × total area).
+    #[arg(long)]
+    pub min_area: Option<f64>,
+    /// Minimum element area relative to the total surface area (used without --min-area).
+    #[arg(long)]
+    pub min_area_rel: Option<f64>,
+    /// Maximum refine+gather iterations.
+    #[arg(long)]
+    pub max_iters: Option<u32>,
+    /// Convergence threshold on the relative change of total power.
+    #[arg(long)]
+    pub tol_converge: Option<f64>,
+    /// Memory budget for elements and links, e.g. 4GB; refinement stops when reached.
+    #[arg(long)]
+    pub max_memory: Option<String>,
+    /// Cluster reception: oriented or isotropic.
+    #[arg(long)]
+    pub cluster_receive: Option<String>,
+    /// Seed of the random choices.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Output directory.
+    #[arg(long, default_value = "hirad-solve")]
+    pub out: PathBuf,
+    /// Discontinuous per-element colours instead of vertex averages.
+    #[arg(long)]
+    pub flat: bool,
+    /// Benchmark: solve, print the statistics as JSON, write no files.
+    #[arg(long)]
+    pub bench: bool,
 }
 
-pub fn run(args: Args, _g: &Global) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet: {}", args.input)
+impl Args {
+    fn config(&self) -> anyhow::Result<SolverConfig> {
+        let mut c = SolverConfig::preset(&self.preset)?;
+        if let Some(r) = &self.refine {
+            c.refine = Oracle::parse(r)?;
+        }
+        if self.eps.is_some() {
+            c.eps = self.eps;
+        }
+        if let Some(e) = self.eps_rel {
+            c.eps_rel = e;
+        }
+        c.two_sided |= self.two_sided;
+        if let Some(v) = &self.visibility {
+            c.visibility = VisibilityMode::parse(v)?;
+        }
+        if let Some(n) = self.shadow_rays {
+            c.shadow_rays = n;
+        }
+        if self.min_area.is_some() {
+            c.min_area = self.min_area;
+        }
+        if let Some(a) = self.min_area_rel {
+            c.min_area_rel = a;
+        }
+        if let Some(n) = self.max_iters {
+            c.max_iters = n;
+        }
+        if let Some(t) = self.tol_converge {
+            c.tol_converge = t;
+        }
+        if let Some(m) = &self.max_memory {
+            c.max_memory = Some(parse_bytes(m)?);
+        }
+        if let Some(r) = &self.cluster_receive {
+            c.cluster_receive = Reception::parse(r)?;
+        }
+        if let Some(s) = self.seed {
+            c.seed = s;
+        }
+        c.validate()?;
+        Ok(c)
+    }
+}
+
+pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
+    let cfg = args.config()?;
+    let strategy = Strategy::parse(&args.clustering)?;
+    let scene = super::load_scene(&args.scene, &args.load.options())?;
+    let t = Instant::now();
+    let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
+    let cluster_seconds = t.elapsed().as_secs_f64();
+    tracing::info!(
+        "{} clusters ({}) built in {cluster_seconds:.3} s",
+        tree.nodes.len(),
+        strategy
+    );
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second handler cannot be installed in the same process; ignore that case.
+        let _ = ctrlc::set_handler(move || c.store(true, Ordering::Relaxed));
+    }
+    let bars = Bars::new(g.quiet || args.bench || g.json);
+    let progress: &dyn Progress = if g.quiet { &NoProgress } else { &bars };
+    let sol = solve_cancellable(&scene, &tree, &cfg, progress, &cancel)?;
+    let st = &sol.stats;
+    if args.bench {
+        let mut v = serde_json::to_value(st)?;
+        v["cluster_build_seconds"] = serde_json::json!(cluster_seconds);
+        v["history"] = serde_json::json!(st.history.len());
+        return super::print_json(&v);
+    }
+    let files = output::write_outputs(&sol, &scene, &args.out, args.flat)
+        .with_context(|| format!("writing the solution into {}", args.out.display()))?;
+    if g.json {
+        return super::print_json(&serde_json::json!({
+            "stats": st,
+            "files": files,
+            "cluster_build_seconds": cluster_seconds,
+        }));
+    }
+    println!(
+        "{}: {} triangles, {} ({} nodes), {} eps {:.4e}",
+        st.scene, st.triangles, st.strategy, st.cluster_nodes, st.refine, st.eps
+    );
+    println!(
+        "elements {} ({} leaves), links {} (ss {}, cs {}, cc {}), {:.1}% of the gathered \
+         energy through cluster links",
+        st.elements, st.leaf_elements, st.links, st.links_ss, st.links_cs, st.links_cc,
+        st.cluster_energy_percent
+    );
+    println!(
+        "{} iterations ({}), {} rays; time {:.3} s (refine {:.3}, gather {:.3}, push-pull \
+         {:.3}); peak memory {:.1} MB counted{}",
+        st.iterations,
+        if st.converged { "converged" } else { "NOT converged" },
+        st.rays,
+        st.time.total,
+        st.time.refine,
+        st.time.gather,
+        st.time.push_pull,
+        st.memory.peak_counted_bytes as f64 / 1e6,
+        st.memory
+            .vm_hwm_bytes
+            .map(|b| format!(", {:.1} MB process peak", b as f64 / 1e6))
+            .unwrap_or_default()
+    );
+    println!(
+        "power: emitted {:.4e} W, absorbed {:.4e} W, escaping {:.4e} W",
+        st.power.emitted, st.power.absorbed, st.power.escaping
+    );
+    for w in &st.warnings {
+        println!("warning: {w}");
+    }
+    println!(
+        "wrote {}, {}, {}",
+        files.glb.display(),
+        files.ply.display(),
+        files.stats.display()
+    );
+    Ok(())
 }

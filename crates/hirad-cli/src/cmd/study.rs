@@ -24,8 +24,9 @@ pub struct Args {
     #[arg(long, default_value = "bf")]
     pub refine: String,
     /// Number of ε values of the sweep (geometric series of the relative ε, 0: no sweep).
-    #[arg(long, default_value_t = 8)]
-    pub tolerances: usize,
+    /// Default 8, or 0 with `--visibility volume` (that study is the §5 experiment).
+    #[arg(long)]
+    pub tolerances: Option<usize>,
     /// Explicit relative ε values, comma-separated (overrides --tolerances).
     #[arg(long, value_delimiter = ',')]
     pub eps_list: Vec<f64>,
@@ -111,7 +112,11 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         scene: scene.to_string(),
         strategies: Strategy::parse_list(&a.clustering)?,
         solver,
-        tolerances: a.tolerances,
+        tolerances: a.tolerances.unwrap_or(if visibility == VisibilityMode::Volume {
+            0
+        } else {
+            8
+        }),
         eps_list: a.eps_list.clone(),
         eps_hi: a.eps_hi.unwrap_or(0.2),
         eps_lo: a.eps_lo.unwrap_or(0.002),

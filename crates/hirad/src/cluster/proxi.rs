@@ -52,7 +52,7 @@ use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use crate::geom::Aabb;
 use glam::Vec3;
 use rayon::prelude::*;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
 
 /// Bits per axis of the global quantisation grid (Morton codes use 63 bits).
@@ -224,6 +224,10 @@ struct Builder<'a> {
     s_ref: f64,
     /// Finest level.
     k_fine: i32,
+    /// Per surface object: it was passed up alone at an earlier level.
+    lonely: Vec<bool>,
+    /// Nearest-neighbour search over the surface centres, built when first needed.
+    centres: Option<PointTree>,
 }
 
 impl<'a> Builder<'a> {
@@ -275,6 +279,8 @@ impl<'a> Builder<'a> {
             grid,
             s_ref,
             k_fine,
+            lonely: vec![false; subset.len()],
+            centres: None,
         }
     }
 
@@ -289,6 +295,23 @@ impl<'a> Builder<'a> {
             return self.k_fine;
         }
         (k.clamp(0.0, self.k_fine as f64)) as i32
+    }
+
+    /// First (finest) level at which a surface whose box centre is at Chebyshev distance `d`
+    /// from every other surface's box centre can be grouped: a group holding it and another
+    /// object contains both centres, so its size is at least `d`, and a group at level `j` has
+    /// size at most `2 c_j`. Returns `i32::MAX` (no constraint) when `d` is 0 or not finite.
+    fn jump_level(&self, d: f32) -> i32 {
+        let d = d as f64;
+        if !d.is_finite() || d <= 0.0 {
+            return i32::MAX;
+        }
+        let j = (2.0 * self.s_ref / d).log2().floor();
+        if j.is_nan() {
+            i32::MAX
+        } else {
+            j.clamp(-1e6, 1e6) as i32
+        }
     }
 
     fn make_object(&self, bbox: Aabb, member: Member) -> Object {
@@ -330,43 +353,31 @@ impl<'a> Builder<'a> {
             .map(|o| this.level_of(o.bbox.size()))
             .collect();
         self.objects = surf;
-        let mut pending: Vec<Vec<u32>> = vec![Vec::new(); self.k_fine as usize + 1];
+        // Objects waiting for their level, finest level processed first.
+        let mut pending: BTreeMap<i32, Vec<u32>> = BTreeMap::new();
         for (i, &k) in levels.iter().enumerate() {
-            pending[k as usize].push(i as u32);
+            pending.entry(k).or_default().push(i as u32);
         }
-        // Objects of the levels below 0 (one level at a time).
-        let mut coarse: Vec<u32> = Vec::new();
         let mut alive = self.subset.len();
-        let mut k = self.k_fine;
-        loop {
-            let objs = if k >= 0 {
-                std::mem::take(&mut pending[k as usize])
-            } else {
-                std::mem::take(&mut coarse)
-            };
-            if !objs.is_empty() {
-                let merged = self.group_level(k, objs, &mut pending, &mut coarse);
-                alive -= merged;
-            }
-            if alive == 1 {
+        while alive > 1 {
+            let Some((k, objs)) = pending.pop_last() else {
                 break;
-            }
-            k -= 1;
+            };
             // Safety net: the cells cover the whole subset long before this; if grouping
             // ever stalled, join what is left in Morton order.
             if k < -(GRID_BITS as i32) - 64 - 2 * MAX_LEVEL {
-                let mut rest: Vec<u32> = pending.iter_mut().flat_map(std::mem::take).collect();
-                rest.append(&mut coarse);
+                let mut rest = objs;
+                rest.extend(pending.into_values().flatten());
                 return self.join_rest(rest);
             }
+            alive -= self.group_level(k, objs, &mut pending);
         }
         let root = pending
-            .iter()
+            .values()
             .flatten()
-            .chain(coarse.iter())
             .next()
             .copied()
-            .expect("one object is alive");
+            .unwrap_or_default();
         match self.objects[root as usize].member {
             Member::Node(id) => id,
             Member::Surface(s) => self.out.push(BuildNode {
@@ -377,14 +388,13 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// Group the objects `objs` of level `k`; the resulting objects go to `pending`
-    /// (levels ≥ 0) or `coarse` (level k − 1 < 0). Returns how many objects disappeared.
+    /// Group the objects `objs` of level `k`; the resulting objects go to `pending`.
+    /// Returns how many objects disappeared.
     fn group_level(
         &mut self,
         k: i32,
         mut objs: Vec<u32>,
-        pending: &mut [Vec<u32>],
-        coarse: &mut Vec<u32>,
+        pending: &mut BTreeMap<i32, Vec<u32>>,
     ) -> usize {
         let c_k = self.s_ref * (-(k as f64)).exp2();
         let size_limit = (2.0 * c_k) as f32;
@@ -540,6 +550,44 @@ impl<'a> Builder<'a> {
             new_nodes.push(node);
         }
 
+        // A surface passed up alone a second time jumps to the first level at which it can
+        // group at all (see `jump_level`).
+        let num_surf = self.subset.len() as u32;
+        let again: Vec<usize> = results
+            .iter()
+            .enumerate()
+            .filter(|(_, &(o, level))| {
+                o < num_surf && level == k - 1 && {
+                    let was = self.lonely[o as usize];
+                    self.lonely[o as usize] = true;
+                    was
+                }
+            })
+            .map(|(i, _)| i)
+            .collect();
+        if !again.is_empty() {
+            let objects = &self.objects;
+            let tree = self.centres.get_or_insert_with(|| {
+                PointTree::new(
+                    objects[..num_surf as usize]
+                        .iter()
+                        .map(|o| o.center)
+                        .collect(),
+                )
+            });
+            let tree = &*tree;
+            let dist: Vec<f32> = again
+                .par_iter()
+                .map(|&i| {
+                    let o = results[i].0;
+                    tree.nearest(objects[o as usize].center, o)
+                })
+                .collect();
+            for (&i, d) in again.iter().zip(dist) {
+                results[i].1 = results[i].1.min(self.jump_level(d));
+            }
+        }
+
         // Push the new clusters in creation order and hand everything to its next level.
         for node in new_nodes {
             let bbox = node.bbox;
@@ -548,11 +596,7 @@ impl<'a> Builder<'a> {
             self.objects.push(obj);
         }
         for (o, level) in results {
-            if level >= 0 {
-                pending[level as usize].push(o);
-            } else {
-                coarse.push(o);
-            }
+            pending.entry(level).or_default().push(o);
         }
         merged
     }
@@ -595,6 +639,85 @@ impl<'a> Builder<'a> {
                 children: vec![],
                 surfaces: vec![s],
             }),
+        }
+    }
+}
+
+/// Points in an implicit k-d tree (median splits, axes in turn) for nearest-neighbour
+/// distances in the maximum norm.
+struct PointTree {
+    pts: Vec<Vec3>,
+    idx: Vec<u32>,
+}
+
+/// Ranges of at most this many points are scanned linearly.
+const KD_LEAF: usize = 8;
+
+impl PointTree {
+    fn new(pts: Vec<Vec3>) -> Self {
+        let mut idx: Vec<u32> = (0..pts.len() as u32).collect();
+        Self::split(&pts, &mut idx, 0);
+        PointTree { pts, idx }
+    }
+
+    fn split(pts: &[Vec3], idx: &mut [u32], axis: usize) {
+        if idx.len() <= KD_LEAF {
+            return;
+        }
+        let mid = idx.len() / 2;
+        idx.select_nth_unstable_by(mid, |&a, &b| {
+            pts[a as usize][axis]
+                .total_cmp(&pts[b as usize][axis])
+                .then(a.cmp(&b))
+        });
+        let (lo, hi) = idx.split_at_mut(mid);
+        let next = (axis + 1) % 3;
+        if lo.len() + hi.len() >= 4 * 4096 {
+            rayon::join(
+                || Self::split(pts, lo, next),
+                || Self::split(pts, &mut hi[1..], next),
+            );
+        } else {
+            Self::split(pts, lo, next);
+            Self::split(pts, &mut hi[1..], next);
+        }
+    }
+
+    /// Smallest maximum-norm distance from `q` to a point other than point `skip`
+    /// (infinity when there is none).
+    fn nearest(&self, q: Vec3, skip: u32) -> f32 {
+        let mut best = f32::INFINITY;
+        self.search(&self.idx, 0, q, skip, &mut best);
+        best
+    }
+
+    fn search(&self, idx: &[u32], axis: usize, q: Vec3, skip: u32, best: &mut f32) {
+        let dist = |i: u32| (self.pts[i as usize] - q).abs().max_element();
+        if idx.len() <= KD_LEAF {
+            for &i in idx {
+                if i != skip {
+                    *best = best.min(dist(i));
+                }
+            }
+            return;
+        }
+        let mid = idx.len() / 2;
+        let m = idx[mid];
+        if m != skip {
+            *best = best.min(dist(m));
+        }
+        let diff = q[axis] - self.pts[m as usize][axis];
+        let (near, far) = if diff < 0.0 {
+            (&idx[..mid], &idx[mid + 1..])
+        } else {
+            (&idx[mid + 1..], &idx[..mid])
+        };
+        let next = (axis + 1) % 3;
+        self.search(near, next, q, skip, best);
+        // `!(a >= b)` form so that NaN coordinates search both sides.
+        let prune = diff.abs() >= *best;
+        if !prune {
+            self.search(far, next, q, skip, best);
         }
     }
 }
@@ -654,6 +777,30 @@ mod tests {
         let cube = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
         assert!((floored_volume(&cube, 0.5) - 8.0).abs() < 1e-12);
         assert!((floored_volume(&cube, 3.0) - 27.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn point_tree_nearest_matches_brute_force() {
+        let mut r = crate::rng::SplitMix64::new(5);
+        let mut pts: Vec<Vec3> = (0..2000)
+            .map(|_| Vec3::new(r.next_f32(), r.next_f32(), r.next_f32() * 0.1))
+            .collect();
+        pts.push(pts[17]); // a duplicate
+        let tree = PointTree::new(pts.clone());
+        for (i, &q) in pts.iter().enumerate() {
+            let brute = pts
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, &p)| (p - q).abs().max_element())
+                .fold(f32::INFINITY, f32::min);
+            assert_eq!(tree.nearest(q, i as u32), brute, "point {i}");
+        }
+        assert_eq!(tree.nearest(pts[17], 17), 0.0);
+        assert_eq!(
+            PointTree::new(vec![Vec3::ONE]).nearest(Vec3::ONE, 0),
+            f32::INFINITY
+        );
     }
 
     #[test]

@@ -6,7 +6,9 @@
 //! along each axis of the centroid bounds, and the plane between bins minimising
 //! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
 //! then lowest plane). When all centroids coincide the surfaces are split in two halves of the
-//! (deterministic) current order.
+//! (deterministic) current order. Below depth `max_depth/2` (reached only by pathological
+//! centroid distributions, e.g. exponentially spaced) nodes are split at the centroid median
+//! of their widest centroid axis instead, which bounds the depth by `max_depth/2 + log2(n)`.
 
 use super::topdown::{self, Item, Out, PAR_MIN};
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
@@ -17,10 +19,20 @@ pub const BINS: usize = 32;
 
 /// Build the tree.
 pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
-    let leaf = cfg.sah_leaf_size.max(1);
+    let p = Params {
+        leaf: cfg.sah_leaf_size.max(1),
+        median_depth: cfg.max_depth / 2,
+    };
     let mut items = topdown::items(prims);
-    let (out, root) = node_par(leaf, &mut items);
-    out.into_build(root).0
+    let (out, root) = node_par(&p, &mut items, 0);
+    out.into_build(root, cfg.max_depth).0
+}
+
+/// Parameters of the build.
+struct Params {
+    leaf: usize,
+    /// Depth from which nodes are split at the centroid median.
+    median_depth: usize,
 }
 
 /// Bin index of a centroid coordinate.
@@ -31,7 +43,7 @@ fn bin_of(x: f32, lo: f32, scale: f32) -> usize {
 
 /// Partition `items` for a split; returns the box and the size of the left part, or `None`
 /// for a leaf.
-fn split(leaf: usize, items: &mut [Item]) -> (Aabb, Option<usize>) {
+fn split(p: &Params, items: &mut [Item], depth: usize) -> (Aabb, Option<usize>) {
     let mut cb = Aabb::EMPTY;
     let mut bbox = Aabb::EMPTY;
     for it in items.iter() {
@@ -40,10 +52,17 @@ fn split(leaf: usize, items: &mut [Item]) -> (Aabb, Option<usize>) {
         bbox.grow(it.hi);
     }
     let n = items.len();
-    if n <= leaf {
+    if n <= p.leaf {
         return (bbox, None);
     }
     let ext = cb.extent();
+    if depth >= p.median_depth {
+        let a = cb.longest_axis();
+        items.select_nth_unstable_by(n / 2, |x, y| {
+            x.c[a].total_cmp(&y.c[a]).then(x.id.cmp(&y.id))
+        });
+        return (bbox, Some(n / 2));
+    }
     let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin of the left side)
     for a in 0..3 {
         if !ext[a].is_finite() || ext[a] <= 0.0 {
@@ -113,34 +132,34 @@ fn finish(items: &[Item], children: Vec<u32>, bbox: Aabb, out: &mut Out) -> u32 
 }
 
 /// Sequential build of a subtree into `out`.
-fn node(leaf: usize, items: &mut [Item], out: &mut Out) -> u32 {
-    let (bbox, sp) = split(leaf, items);
+fn node(p: &Params, items: &mut [Item], depth: usize, out: &mut Out) -> u32 {
+    let (bbox, sp) = split(p, items, depth);
     let Some(nl) = sp else {
         return finish(items, Vec::new(), bbox, out);
     };
     let (l, r) = items.split_at_mut(nl);
-    let a = node(leaf, l, out);
-    let b = node(leaf, r, out);
+    let a = node(p, l, depth + 1, out);
+    let b = node(p, r, depth + 1, out);
     finish(&[], vec![a, b], bbox, out)
 }
 
 /// Parallel build: large subtrees on separate rayon tasks, same ids as [`node`].
-fn node_par(leaf: usize, items: &mut [Item]) -> (Out, Option<u32>) {
+fn node_par(p: &Params, items: &mut [Item], depth: usize) -> (Out, Option<u32>) {
     let mut out = Out::default();
     if items.is_empty() {
         return (out, None);
     }
     if items.len() < PAR_MIN {
-        let r = node(leaf, items, &mut out);
+        let r = node(p, items, depth, &mut out);
         return (out, Some(r));
     }
-    let (bbox, sp) = split(leaf, items);
+    let (bbox, sp) = split(p, items, depth);
     let Some(nl) = sp else {
         let r = finish(items, Vec::new(), bbox, &mut out);
         return (out, Some(r));
     };
     let (l, r) = items.split_at_mut(nl);
-    let (a, b) = rayon::join(|| node_par(leaf, l), || node_par(leaf, r));
+    let (a, b) = rayon::join(|| node_par(p, l, depth + 1), || node_par(p, r, depth + 1));
     let children = out.append_all(vec![a, b]);
     let id = finish(&[], children, bbox, &mut out);
     (out, Some(id))

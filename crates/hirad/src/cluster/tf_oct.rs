@@ -31,7 +31,7 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     let mut items = topdown::items(prims);
     let mut scratch = items.clone();
     let (out, root) = node_par(&p, &mut items, &mut scratch, 0);
-    out.into_build(root).0
+    out.into_build(root, p.max_depth).0
 }
 
 /// Bucket 0 = stays, 1 + octant otherwise.
@@ -98,6 +98,7 @@ fn finish(stay: &[Item], children: Vec<u32>, bbox: crate::geom::Aabb, out: &mut 
 fn node(p: &Params, items: &mut [Item], scratch: &mut [Item], depth: usize, out: &mut Out) -> u32 {
     let (bbox, sp) = split(p, items, scratch, depth);
     let Some(start) = sp else {
+        out.capped += (depth >= p.max_depth && items.len() > p.leaf) as usize;
         return finish(items, Vec::new(), bbox, out);
     };
     let mut children = Vec::new();
@@ -133,6 +134,7 @@ fn node_par(
     }
     let (bbox, sp) = split(p, items, scratch, depth);
     let Some(start) = sp else {
+        out.capped += (depth >= p.max_depth && items.len() > p.leaf) as usize;
         let r = finish(items, Vec::new(), bbox, &mut out);
         return (out, Some(r));
     };

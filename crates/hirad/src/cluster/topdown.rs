@@ -72,6 +72,8 @@ pub(crate) fn ids(items: &[Item]) -> Vec<u32> {
 pub(crate) struct Out {
     pub nodes: Vec<BuildNode>,
     pub cells: Vec<Aabb>,
+    /// Nodes left unsplit because they reached the depth limit.
+    pub capped: usize,
 }
 
 impl Out {
@@ -86,6 +88,8 @@ impl Out {
     /// Append a subtree whose ids start at 0, shifting them; returns the shift.
     pub fn append(&mut self, mut other: Out) -> u32 {
         let off = self.nodes.len() as u32;
+        self.capped += other.capped;
+        other.capped = 0;
         if off > 0 {
             for n in &mut other.nodes {
                 for c in &mut n.children {
@@ -94,7 +98,9 @@ impl Out {
             }
         }
         if self.nodes.is_empty() {
+            let capped = self.capped;
             *self = other;
+            self.capped = capped;
         } else {
             self.nodes.append(&mut other.nodes);
             self.cells.append(&mut other.cells);
@@ -114,21 +120,59 @@ impl Out {
         roots
     }
 
-    /// The finished tree (a single empty root when there are no surfaces).
-    pub fn into_build(mut self, root: Option<u32>) -> (BuildTree, Vec<Aabb>) {
+    /// The finished tree (a single empty root when there are no surfaces); `max_depth` is
+    /// named in the note about capped nodes.
+    pub fn into_build(mut self, root: Option<u32>, max_depth: usize) -> (BuildTree, Vec<Aabb>) {
         let root = match root {
             Some(r) => r,
             None => self.push(BuildNode::default(), Aabb::EMPTY),
         };
+        let mut notes = Vec::new();
+        if self.capped > 0 {
+            notes.push(format!(
+                "{} clusters reached max_depth {max_depth} and were not split further",
+                self.capped
+            ));
+        }
         (
             BuildTree {
                 nodes: self.nodes,
                 root,
-                notes: Vec::new(),
+                notes,
             },
             self.cells,
         )
     }
+}
+
+/// Stable three-way partition of `src` into `dst` by `class` (0, 1 or 2), without branches
+/// on the class: the classes are recorded in `tags` while counting, then every item is copied
+/// to the next slot of its group. Returns the tight box of the items and the sizes of groups
+/// 0 and 1. The three slices have the same length.
+#[inline]
+pub(crate) fn scatter3(
+    src: &[Item],
+    dst: &mut [Item],
+    tags: &mut [u8],
+    class: impl Fn(&Item) -> u8,
+) -> (Aabb, usize, usize) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    let mut cnt = [0usize; 4];
+    for (it, t) in src.iter().zip(tags.iter_mut()) {
+        let k = class(it) & 3;
+        *t = k;
+        cnt[k as usize] += 1;
+        lo = lo.min(it.lo);
+        hi = hi.max(it.hi);
+    }
+    let mut off = [0, cnt[0], cnt[0] + cnt[1], src.len()];
+    for (it, &t) in src.iter().zip(tags.iter()) {
+        let o = &mut off[t as usize];
+        dst[*o] = *it;
+        *o += 1;
+    }
+    (Aabb::new(lo, hi), cnt[0], cnt[1])
 }
 
 /// Three-way in-place partition of `items` by `class` (0 = first, 1 = middle, 2 = last),

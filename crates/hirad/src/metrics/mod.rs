@@ -274,7 +274,11 @@ pub fn heatmap(delta_e: &[f32], width: u32, height: u32, scale_max: f32) -> Resu
             delta_e.len()
         )));
     }
-    let k = if scale_max > 0.0 { 1.0 / scale_max } else { 0.0 };
+    let k = if scale_max > 0.0 {
+        1.0 / scale_max
+    } else {
+        0.0
+    };
     Ok(Image {
         width,
         height,
@@ -291,10 +295,17 @@ mod tests {
         let m = srgb_to_xyz_matrix();
         let w = m * DVec3::ONE;
         assert!((w - D65).abs().max_element() < 1e-12, "{w}");
-        // Lindbloom's published sRGB matrix, 4 decimals.
-        assert!((m.x_axis.x - 0.4124).abs() < 1e-4);
-        assert!((m.y_axis.y - 0.7152).abs() < 1e-4);
-        assert!((m.z_axis.z - 0.9505).abs() < 1e-4);
+        // Lindbloom's published sRGB → XYZ matrix (same primaries and white), 7 decimals.
+        let want = [
+            [0.4124564, 0.3575761, 0.1804375],
+            [0.2126729, 0.7151522, 0.0721750],
+            [0.0193339, 0.1191920, 0.9503041],
+        ];
+        for (r, row) in want.iter().enumerate() {
+            for (c, &v) in row.iter().enumerate() {
+                assert!((m.row(r)[c] - v).abs() < 1e-6, "({r}, {c}): {}", m.row(r)[c]);
+            }
+        }
     }
 
     #[test]

@@ -120,14 +120,26 @@ struct NodeRef {
 }
 
 /// A child entry, stored in its parent's contiguous block: the child's box and how to visit
-/// it (40 bytes), so that visiting a node reads one block of children and one run of
+/// it (48 bytes), so that visiting a node reads one block of children and one run of
 /// triangles.
 #[derive(Clone, Copy, Debug, Default)]
-#[repr(C)]
+#[repr(C, align(16))]
 struct Child {
-    /// `[minx, miny, minz, maxx, maxy, maxz]`.
-    b: [f32; 6],
+    /// `[minx, miny, minz, −∞]`.
+    lo: [f32; 4],
+    /// `[maxx, maxy, maxz, +∞]`.
+    hi: [f32; 4],
     node: NodeRef,
+}
+
+impl Child {
+    fn new(b: &crate::geom::Aabb, node: NodeRef) -> Child {
+        Child {
+            lo: [b.min.x, b.min.y, b.min.z, f32::NEG_INFINITY],
+            hi: [b.max.x, b.max.y, b.max.z, f32::INFINITY],
+            node,
+        }
+    }
 }
 
 /// Traversal layout of a cluster tree: nodes in depth-first pre-order (children in tree
@@ -143,10 +155,6 @@ struct Layout {
     tri_id: Vec<u32>,
     /// Pre-order position → tree node id.
     tree_id: Vec<u32>,
-}
-
-fn box6(b: &crate::geom::Aabb) -> [f32; 6] {
-    [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
 }
 
 impl Layout {
@@ -165,10 +173,13 @@ impl Layout {
         };
         let surfs = |id: u32| {
             let node = &tree.nodes[id as usize];
-            let end = (node.first_surface as usize + node.num_surfaces as usize)
-                .min(tree.surfaces.len());
+            let end =
+                (node.first_surface as usize + node.num_surfaces as usize).min(tree.surfaces.len());
             let start = (node.first_surface as usize).min(end);
-            tree.surfaces[start..end].iter().copied().filter(|&s| s < nt)
+            tree.surfaces[start..end]
+                .iter()
+                .copied()
+                .filter(|&s| s < nt)
         };
         // Depth-first pre-order.
         let mut order = Vec::with_capacity(n);
@@ -204,10 +215,7 @@ impl Layout {
         let mut tri_id = Vec::with_capacity(ntri as usize);
         for &id in &order {
             for c in kids(id) {
-                children.push(Child {
-                    b: box6(&tree.nodes[c as usize].bbox),
-                    node: refs[c as usize],
-                });
+                children.push(Child::new(&tree.nodes[c as usize].bbox, refs[c as usize]));
             }
             for s in surfs(id) {
                 let [a, b, c] = scene.tri_vertices(s as usize);
@@ -216,10 +224,7 @@ impl Layout {
             }
         }
         Layout {
-            root: Some(Child {
-                b: box6(&tree.nodes[0].bbox),
-                node: refs[0],
-            }),
+            root: Some(Child::new(&tree.nodes[0].bbox, refs[0])),
             children,
             tris,
             tri_id,
@@ -258,8 +263,11 @@ impl<T: Copy, const N: usize> Stack<T, N> {
             }
             self.heap.reserve(2 * N);
             // SAFETY: the first `len` entries were written by `push`.
-            self.heap
-                .extend(self.buf[..self.len].iter().map(|x| unsafe { x.assume_init() }));
+            self.heap.extend(
+                self.buf[..self.len]
+                    .iter()
+                    .map(|x| unsafe { x.assume_init() }),
+            );
             self.spilled = true;
         }
         self.heap.push(x);
@@ -496,13 +504,13 @@ impl<'a> RayCaster<'a> {
         let Some(r) = RayPre::new(origin, dir) else {
             return false;
         };
-        if !(tmin <= tmax) {
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return false;
         }
         if STATS {
             stats.boxes += 1;
         }
-        if r.slab(&root.b, tmin, tmax).is_none() {
+        if r.slab4(&root.lo, &root.hi, tmin, tmax).is_none() {
             return false;
         }
         let mut stack: Stack<NodeRef, STACK> = Stack::new();
@@ -527,8 +535,8 @@ impl<'a> RayCaster<'a> {
             }
             if let [c0, c1] = ch {
                 // Binary node: nearer child on top.
-                let h0 = r.slab(&c0.b, tmin, tmax);
-                let h1 = r.slab(&c1.b, tmin, tmax);
+                let h0 = r.slab4(&c0.lo, &c0.hi, tmin, tmax);
+                let h1 = r.slab4(&c1.lo, &c1.hi, tmin, tmax);
                 match (h0, h1) {
                     (Some(t0), Some(t1)) => {
                         if t0 <= t1 {
@@ -546,7 +554,7 @@ impl<'a> RayCaster<'a> {
                 continue;
             }
             for c in ch.iter().rev() {
-                if r.slab(&c.b, tmin, tmax).is_some() {
+                if r.slab4(&c.lo, &c.hi, tmin, tmax).is_some() {
                     stack.push(c.node);
                 }
             }
@@ -566,13 +574,13 @@ impl<'a> RayCaster<'a> {
         let l = &self.layout;
         let root = l.root.as_ref()?;
         let r = RayPre::new(origin, dir)?;
-        if !(tmin <= tmax) {
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return None;
         }
         if STATS {
             stats.boxes += 1;
         }
-        let t0 = r.slab(&root.b, tmin, tmax)?;
+        let t0 = r.slab4(&root.lo, &root.hi, tmin, tmax)?;
         let mut best_t = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
         let mut stack: Stack<Entry, STACK> = Stack::new();
@@ -607,7 +615,7 @@ impl<'a> RayCaster<'a> {
             let cs = n.first_child as usize;
             let before = stack.size();
             for c in &l.children[cs..cs + n.num_children as usize] {
-                if let Some(t) = r.slab(&c.b, tmin, best_t) {
+                if let Some(t) = r.slab4(&c.lo, &c.hi, tmin, best_t) {
                     stack.push(Entry { node: c.node, t });
                 }
             }

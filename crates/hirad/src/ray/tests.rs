@@ -50,9 +50,20 @@ fn layout_is_depth_first_with_inner_surfaces() {
     assert_eq!(rc.layout.tri_id, vec![1, 0]);
     assert_eq!(rc.layout.children.len(), 1);
     let root = rc.layout.root.unwrap().node;
-    assert_eq!((root.first_child, root.num_children, root.tri_start, root.num_tris), (0, 1, 0, 1));
+    assert_eq!(
+        (
+            root.first_child,
+            root.num_children,
+            root.tri_start,
+            root.num_tris
+        ),
+        (0, 1, 0, 1)
+    );
     let leaf = rc.layout.children[0].node;
-    assert_eq!((leaf.num_children, leaf.tri_start, leaf.num_tris), (0, 1, 1));
+    assert_eq!(
+        (leaf.num_children, leaf.tri_start, leaf.num_tris),
+        (0, 1, 1)
+    );
     let _ = Aabb::EMPTY;
 }
 

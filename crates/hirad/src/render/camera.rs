@@ -214,7 +214,12 @@ mod tests {
     #[test]
     fn ray_and_projection_agree() {
         let f = view().frame();
-        for &(sx, sy) in &[(0.5f32, 0.5f32), (100.0, 50.0), (173.25, 12.5), (199.5, 99.5)] {
+        for &(sx, sy) in &[
+            (0.5f32, 0.5f32),
+            (100.0, 50.0),
+            (173.25, 12.5),
+            (199.5, 99.5),
+        ] {
             let p = f.eye + f.direction(sx, sy) * 3.7;
             let (x, y) = f.project(p).unwrap();
             assert!((x - sx).abs() < 1e-3 && (y - sy).abs() < 1e-3, "{x} {y}");

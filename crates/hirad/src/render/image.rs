@@ -186,9 +186,14 @@ impl Image {
         })
     }
 
-    /// Box-filter down by an integer factor (`width` and `height` must be multiples of `f`).
-    pub fn downsample(&self, f: u32) -> Image {
-        assert!(f >= 1 && self.width % f == 0 && self.height % f == 0);
+    /// Box-filter down by an integer factor `f` (`width` and `height` must be multiples of it).
+    pub fn downsample(&self, f: u32) -> Result<Image> {
+        if f == 0 || !self.width.is_multiple_of(f) || !self.height.is_multiple_of(f) {
+            return Err(Error::Config(format!(
+                "cannot downsample {}x{} by {f}",
+                self.width, self.height
+            )));
+        }
         let (w, h) = (self.width / f, self.height / f);
         let mut out = Image::new(w, h, Vec3::ZERO);
         let inv = 1.0 / (f * f) as f32;
@@ -203,7 +208,7 @@ impl Image {
                 out.set(x, y, s * inv);
             }
         }
-        out
+        Ok(out)
     }
 }
 

@@ -170,7 +170,10 @@ fn cosine_sample(n: Vec3, u1: f32, u2: f32) -> (Vec3, f32) {
     let phi = 2.0 * PI * u2;
     let (t, b) = basis(n);
     let cos = (1.0 - u1).max(0.0).sqrt();
-    ((t * (r * phi.cos()) + b * (r * phi.sin()) + n * cos).normalize(), cos)
+    (
+        (t * (r * phi.cos()) + b * (r * phi.sin()) + n * cos).normalize(),
+        cos,
+    )
 }
 
 /// The path tracer over a scene and a ray caster.
@@ -194,7 +197,9 @@ impl<'a> PathTracer<'a> {
     /// Prepare the light distribution.
     pub fn new(scene: &'a Scene, caster: &'a RayCaster<'a>, opts: &ReferenceOptions) -> Self {
         let diag = scene.bbox.extent().length();
-        let scale = diag.max(scene.bbox.min.abs().max_element()).max(scene.bbox.max.abs().max_element());
+        let scale = diag
+            .max(scene.bbox.min.abs().max_element())
+            .max(scene.bbox.max.abs().max_element());
         PathTracer {
             scene,
             caster,

@@ -281,7 +281,15 @@ pub fn rasterize_with_stats(
         .enumerate()
         .map(|(b, out)| {
             let list = &binned[start[b] as usize..start[b + 1] as usize];
-            raster_band(&tris, list, b as u32 * band_rows, out, sw, ss, opts.background)
+            raster_band(
+                &tris,
+                list,
+                b as u32 * band_rows,
+                out,
+                sw,
+                ss,
+                opts.background,
+            )
         })
         .sum();
     let stats = RasterStats {
@@ -374,11 +382,12 @@ impl Setup<'_> {
             cols
         };
         let inside = c.iter().all(|p| {
-            p.z >= self.near
-                && p.x.abs() <= self.guard_x * p.z
-                && p.y.abs() <= self.guard_y * p.z
+            p.z >= self.near && p.x.abs() <= self.guard_x * p.z && p.y.abs() <= self.guard_y * p.z
         });
-        let verts = [0, 1, 2].map(|j| ClipVert { p: c[j], c: cols[j] });
+        let verts = [0, 1, 2].map(|j| ClipVert {
+            p: c[j],
+            c: cols[j],
+        });
         if inside {
             self.emit(&verts, flat, out);
             return false;

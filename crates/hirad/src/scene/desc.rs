@@ -226,7 +226,7 @@ pub fn load_raw(path: &Path) -> Result<RawScene> {
     }
     if let Some(s) = &desc.sun {
         let d = Vec3::from(*s.direction.get_ref());
-        if !(d.length() > 0.0) || !d.is_finite() {
+        if !d.is_finite() || d.length() == 0.0 {
             return Err(at(
                 s.direction.span(),
                 "sun direction must be a non-zero vector".into(),

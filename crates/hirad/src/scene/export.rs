@@ -172,7 +172,7 @@ struct GlbBuilder {
 
 impl GlbBuilder {
     fn view(&mut self, bytes: &[u8], target: u32) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let off = self.bin.len();
@@ -226,7 +226,7 @@ impl GlbBuilder {
 
     /// Assemble the GLB container around `doc` (which gets buffers, views, accessors).
     fn finish(mut self, mut doc: Value) -> Vec<u8> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         doc["asset"] = json!({"version": "2.0", "generator": format!("hirad {}", crate::VERSION)});
@@ -234,7 +234,7 @@ impl GlbBuilder {
         doc["bufferViews"] = Value::Array(self.views);
         doc["accessors"] = Value::Array(self.accessors);
         let mut js = serde_json::to_vec(&doc).unwrap_or_default();
-        while js.len() % 4 != 0 {
+        while !js.len().is_multiple_of(4) {
             js.push(b' ');
         }
         let total = 12 + 8 + js.len() + 8 + self.bin.len();

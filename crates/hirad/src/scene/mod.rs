@@ -6,9 +6,11 @@
 //! load), one-sided, facing the geometric normal of counter-clockwise winding. Emitted exitance
 //! is E = π·L_e. Every loader produces a [`RawScene`] and goes through [`Scene::from_raw`], which
 //! is the one place where input is validated: non-finite coordinates, out-of-range indices and
-//! reflectances outside [0, 1] are errors naming the file; ρ = 1 exactly is clamped to
-//! `max_reflectance` with one warning; zero-area triangles are dropped and counted; an empty
-//! scene is an error.
+//! reflectances outside [0, 1] are errors naming the file; channels above `max_reflectance`
+//! (typically ρ = 1 exactly) are clamped to it with one warning listing the materials;
+//! zero-area triangles are dropped and counted; an empty scene is an error. Loaders report
+//! file and line themselves where the file has lines (OBJ, MTL, ASCII PLY, TOML). `SceneOptions`
+//! `up` overrides the up axis a loader found.
 
 use crate::geom::Aabb;
 use crate::{Error, Result};
@@ -255,7 +257,7 @@ impl Scene {
             let [a, b, c] = t.map(|v| raw.positions[v as usize]);
             let cr = (b - a).cross(c - a);
             let area = 0.5 * cr.length();
-            if !(area > 0.0) || !cr.normalize_or_zero().is_normalized() {
+            if area.is_nan() || area <= 0.0 || !cr.normalize_or_zero().is_normalized() {
                 degenerate += 1;
                 continue;
             }

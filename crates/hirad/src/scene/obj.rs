@@ -46,7 +46,6 @@ pub fn load_with_tobj(path: &Path) -> Result<RawScene> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         tobj::load_obj_buf(&mut &bytes[..], &opts, |p| tobj::load_mtl(dir.join(p)))

@@ -211,10 +211,10 @@ impl<'a> Body<'a> {
     }
 }
 
-fn parse_header(
-    path: &Path,
-    bytes: &[u8],
-) -> Result<(Format, Vec<Element>, usize, usize, Option<UpAxis>)> {
+/// What the header says: format, elements, offset of the body, header lines, up axis.
+type Header = (Format, Vec<Element>, usize, usize, Option<UpAxis>);
+
+fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
     let mut pos = 0usize;
     let mut line_no = 0usize;
     let mut format = None;

@@ -30,7 +30,11 @@ pub fn view(scene: &Scene, width: u32, height: u32) -> CameraView {
 }
 
 /// Path-traced reference of `scene` seen from `view`.
-pub fn reference(scene: &Scene, view: &CameraView, opts: &ReferenceOptions) -> (Image, ReferenceStats) {
+pub fn reference(
+    scene: &Scene,
+    view: &CameraView,
+    opts: &ReferenceOptions,
+) -> (Image, ReferenceStats) {
     let tree = ClusterTree::build(scene, Strategy::Sah, &ClusterConfig::default());
     let caster = RayCaster::new(scene, &tree);
     render_reference(scene, &caster, view, opts, &NoProgress).unwrap()

@@ -1,0 +1,220 @@
+//! Isotropic clusters (spec/radiosity.md correctness test 5): a cluster of many randomly
+//! oriented tiny patches receives and emits the power predicted by its projected area ΣA/4,
+//! and the power a cluster receives is exactly what its surfaces get.
+
+use glam::{DVec3, Vec3};
+use hirad::cluster::{BuildNode, BuildTree, ClusterConfig, ClusterTree, Prims, Strategy};
+use hirad::geom::Aabb;
+use hirad::progress::NoProgress;
+use hirad::radiosity::formfactor::point_to_polygon;
+use hirad::radiosity::{solve, Reception, SolverConfig};
+use hirad::rng::SplitMix64;
+use hirad::scene::{Material, RawScene, Scene, SceneOptions};
+
+const PATCHES: usize = 6000;
+
+fn gauss(rng: &mut SplitMix64) -> f32 {
+    let u1 = rng.next_f64().max(1e-12);
+    let u2 = rng.next_f64();
+    ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
+}
+
+/// A cloud of `PATCHES` tiny randomly oriented triangles (material 0) around the origin and
+/// a 0.2 m square (material 1) at height 5 facing down.
+fn cloud_scene(cloud_emits: bool) -> Scene {
+    let mut rng = SplitMix64::new(11);
+    let mut raw = RawScene {
+        name: "cloud".into(),
+        objects: vec!["cloud".into(), "square".into()],
+        materials: vec![
+            Material {
+                name: "patch".into(),
+                rho: Vec3::ZERO,
+                emission: if cloud_emits {
+                    Vec3::splat(std::f32::consts::FRAC_1_PI)
+                } else {
+                    Vec3::ZERO
+                },
+            },
+            Material {
+                name: "square".into(),
+                rho: Vec3::ZERO,
+                emission: if cloud_emits {
+                    Vec3::ZERO
+                } else {
+                    Vec3::splat(std::f32::consts::FRAC_1_PI)
+                },
+            },
+        ],
+        ..Default::default()
+    };
+    for _ in 0..PATCHES {
+        let c = Vec3::new(gauss(&mut rng), gauss(&mut rng), gauss(&mut rng)) * 0.15;
+        let b = raw.positions.len() as u32;
+        for _ in 0..3 {
+            let o = Vec3::new(gauss(&mut rng), gauss(&mut rng), gauss(&mut rng)) * 0.004;
+            raw.positions.push(c + o);
+        }
+        raw.triangles.push([b, b + 1, b + 2]);
+        raw.tri_material.push(0);
+        raw.tri_object.push(0);
+    }
+    let b = raw.positions.len() as u32;
+    let h = 5.0;
+    raw.positions.extend([
+        Vec3::new(-0.1, -0.1, h),
+        Vec3::new(-0.1, 0.1, h),
+        Vec3::new(0.1, 0.1, h),
+        Vec3::new(0.1, -0.1, h),
+    ]);
+    raw.triangles.push([b, b + 1, b + 2]);
+    raw.triangles.push([b, b + 2, b + 3]);
+    raw.tri_material.extend([1, 1]);
+    raw.tri_object.extend([1, 1]);
+    Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// Root with the square's triangles attached directly and the cloud as a median-split binary
+/// hierarchy (leaves of at most 8 patches).
+fn cloud_tree(scene: &Scene) -> (ClusterTree, u32) {
+    let prims = Prims::from_scene(scene);
+    let mut b = BuildTree::default();
+    fn build(b: &mut BuildTree, prims: &Prims, mut ids: Vec<u32>) -> u32 {
+        let mut bbox = Aabb::EMPTY;
+        for &i in &ids {
+            bbox.grow_box(&prims.bbox[i as usize]);
+        }
+        if ids.len() <= 8 {
+            return b.push(BuildNode {
+                bbox,
+                children: vec![],
+                surfaces: ids,
+            });
+        }
+        let ax = bbox.longest_axis();
+        ids.sort_by(|&x, &y| {
+            prims.centroid[x as usize][ax].total_cmp(&prims.centroid[y as usize][ax])
+        });
+        let right = ids.split_off(ids.len() / 2);
+        let l = build(b, prims, ids);
+        let r = build(b, prims, right);
+        b.push(BuildNode {
+            bbox,
+            children: vec![l, r],
+            surfaces: vec![],
+        })
+    }
+    let cloud: Vec<u32> = (0..PATCHES as u32).collect();
+    let c = build(&mut b, &prims, cloud);
+    let n = scene.num_triangles() as u32;
+    b.root = b.push(BuildNode {
+        bbox: scene.bbox,
+        children: vec![c],
+        surfaces: vec![n - 2, n - 1],
+    });
+    let t = ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default());
+    t.validate(&prims).unwrap();
+    (t, 1)
+}
+
+fn cloud_area(scene: &Scene) -> f64 {
+    scene.areas[..PATCHES].iter().map(|&a| a as f64).sum()
+}
+
+fn cloud_centroid(scene: &Scene) -> DVec3 {
+    let mut c = DVec3::ZERO;
+    for t in 0..PATCHES {
+        c += scene.tri_centroid(t).as_dvec3() * scene.areas[t] as f64;
+    }
+    c / cloud_area(scene)
+}
+
+#[test]
+fn cluster_receives_projected_area_quarter() {
+    let scene = cloud_scene(false);
+    let (tree, _) = cloud_tree(&scene);
+    let n = scene.num_triangles();
+    // Irradiance at the cloud centre on a plane facing each square triangle (E = 1).
+    let c = cloud_centroid(&scene);
+    let mut h_centre = 0.0;
+    for t in [n - 2, n - 1] {
+        let poly = scene.tri_vertices(t).map(|p| p.as_dvec3());
+        let dir = (scene.tri_centroid(t).as_dvec3() - c).normalize();
+        h_centre += point_to_polygon(c, dir, &poly, scene.normals[t].as_dvec3());
+    }
+    let sum_a = cloud_area(&scene);
+    let predicted = h_centre * sum_a / 4.0;
+    for mode in [Reception::Isotropic, Reception::Oriented] {
+        let cfg = SolverConfig {
+            eps: Some(1e9),
+            cluster_receive: mode,
+            ..SolverConfig::default()
+        };
+        let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+        let received: f64 = (0..PATCHES as u32)
+            .map(|t| scene.areas[t as usize] as f64 * sol.triangle_irradiance(t, false).x)
+            .sum();
+        // What the cluster links deliver, computed from the link list: H at the receiving
+        // cluster times the reception weights of its surfaces.
+        let el = &sol.elements;
+        let mut via_links = 0.0;
+        for l in &sol.links.links {
+            if el.elems[l.recv as usize].is_cluster() && !el.elems[l.src as usize].is_cluster() {
+                let h = l.k as f64 * el.b[l.src as usize].x;
+                let d = (el.elems[l.src as usize].centroid - el.elems[l.recv as usize].centroid)
+                    .normalize();
+                let mut leaves = Vec::new();
+                el.leaves_of(l.recv, &mut leaves);
+                for s in leaves {
+                    let e = &el.elems[s as usize];
+                    let w = match mode {
+                        Reception::Isotropic => 0.25,
+                        Reception::Oriented => e.normal.dot(d).max(0.0) as f64,
+                    };
+                    via_links += e.area as f64 * h * w;
+                }
+            }
+        }
+        let rel = (received - predicted).abs() / predicted;
+        println!(
+            "{mode:?}: received {received:.6e}, predicted H·ΣA/4 = {predicted:.6e} (rel {rel:.2e}), \
+             through cluster links {via_links:.6e}, {} cluster-surface links",
+            sol.stats.links_cs
+        );
+        assert!(sol.stats.links_cs >= 2, "the square must link to the cloud as a cluster");
+        assert!(
+            (received - via_links).abs() <= 1e-9 * received,
+            "surfaces got {received}, links delivered {via_links}"
+        );
+        match mode {
+            Reception::Isotropic => assert!(rel < 1e-3, "isotropic reception {rel}"),
+            Reception::Oriented => assert!(rel < 0.05, "oriented reception {rel}"),
+        }
+    }
+}
+
+#[test]
+fn cluster_emits_projected_area_quarter() {
+    let scene = cloud_scene(true);
+    let (tree, _) = cloud_tree(&scene);
+    let n = scene.num_triangles();
+    let cfg = SolverConfig {
+        eps: Some(1e9),
+        ..SolverConfig::default()
+    };
+    let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+    // Isotropic point source of intensity I = Φ/(4π), Φ = ΣA·B (B = E = 1).
+    let c = cloud_centroid(&scene);
+    let intensity = cloud_area(&scene) / (4.0 * std::f64::consts::PI);
+    let mut predicted = 0.0;
+    let mut received = 0.0;
+    for t in [n - 2, n - 1] {
+        let d = c - scene.tri_centroid(t).as_dvec3();
+        let cos = scene.normals[t].as_dvec3().dot(d.normalize());
+        predicted += intensity * scene.areas[t] as f64 * cos / d.length_squared();
+        received += scene.areas[t] as f64 * sol.triangle_irradiance(t as u32, false).x;
+    }
+    let rel = (received - predicted).abs() / predicted;
+    println!("cluster emission: square receives {received:.6e}, I·Ω predicts {predicted:.6e} (rel {rel:.2e})");
+    assert!(rel < 2e-3, "{rel}");
+}
