@@ -376,3 +376,21 @@ fn batch_results_do_not_depend_on_threads() {
         assert_eq!(rc.occluded(s.origin, s.dir, s.tmin, s.tmax), o);
     }
 }
+
+/// Strategies may leave boxes a hair smaller than their contents (`validate` allows a relative
+/// slack of 1e-5): the traversal grows them, so grazing rays still agree with brute force.
+#[test]
+fn boxes_with_slack_still_exact() {
+    let scene = random_scene(31, 10, 20);
+    let mut tree = random_tree(&scene, 32);
+    let eps = 5e-6 * scene.bbox.size();
+    for n in &mut tree.nodes {
+        n.bbox.min += Vec3::splat(eps);
+        n.bbox.max -= Vec3::splat(eps);
+    }
+    tree.validate(&Prims::from_scene(&scene)).unwrap();
+    // Segments running exactly in the planes of the quads' faces and edges.
+    let segs = random_segments(&scene, 33, 3000);
+    let occ = check_against_brute(&scene, &tree, &segs);
+    assert!(occ > 100, "{occ}");
+}

@@ -469,6 +469,13 @@ fn bad_input_is_an_error_not_a_panic() {
         ..Default::default()
     };
     assert!(rasterize(&mesh, &view, &opts).is_err());
+    let big = RasterOptions {
+        supersample: 16,
+        ..Default::default()
+    };
+    let mut v = view.clone();
+    v.width = 8192;
+    assert!(rasterize(&mesh, &v, &big).is_err());
     let mut v = view.clone();
     v.fov_deg = 0.0;
     assert!(rasterize(&mesh, &v, &RasterOptions::default()).is_err());

@@ -437,3 +437,24 @@ mod props {
         }
     }
 }
+
+/// Scene → TOML (+ OBJ + MTL) → scene keeps geometry, materials, sun, sky, cameras and up.
+#[test]
+fn scene_toml_round_trip_keeps_lights_and_cameras() {
+    let d = tempfile::tempdir().unwrap();
+    for name in ["cornell", "trees"] {
+        let s = Scene::load(name, &SceneOptions::default()).unwrap();
+        let p = d.path().join(format!("{name}.toml"));
+        write_scene(&p, &s).unwrap();
+        let r = load(&p);
+        assert_eq!(r.name, s.name);
+        assert_eq!(r.num_triangles(), s.num_triangles());
+        assert_eq!(r.triangles, s.triangles);
+        assert_eq!(r.areas, s.areas);
+        assert_eq!(r.up, s.up);
+        assert_eq!(r.sun, s.sun);
+        assert_eq!(r.sky, s.sky);
+        assert_eq!(r.cameras, s.cameras);
+        same_materials(&s, &r, 0.0);
+    }
+}

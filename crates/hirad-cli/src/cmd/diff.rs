@@ -1,10 +1,13 @@
 //! `hirad diff IMAGE REFERENCE`: CIELUV image error (`experiments.md` §3). Linear sRGB → XYZ →
 //! CIELUV with the D65 white scaled to the reference's 99th-percentile luminance (nearest rank);
 //! prints RMS ΔE*uv over pixels, max and mean ΔE, relative RMSE in linear RGB. `--heatmap`
-//! writes a false-colour ΔE image (black = 0, pale yellow = `--heatmap-max`, default the max).
+//! writes a false-colour ΔE image (black = 0, pale yellow = `--heatmap-max`, default the 99th
+//! percentile of ΔE by nearest rank, so that a few outliers do not darken the whole map).
 
 use crate::Global;
-use hirad::metrics::{compare_with_white, delta_e_map, heatmap, white_luminance};
+use hirad::metrics::{
+    compare_with_white, delta_e_map, heatmap, percentile_nearest_rank, white_luminance,
+};
 use hirad::render::Image;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -18,7 +21,7 @@ pub struct Args {
     /// Write a false-colour ΔE image (`.png` or `.exr`).
     #[arg(long)]
     pub heatmap: Option<PathBuf>,
-    /// ΔE shown at the top of the heatmap scale (default: the largest ΔE).
+    /// ΔE shown at the top of the heatmap scale (default: the 99th percentile of ΔE).
     #[arg(long)]
     pub heatmap_max: Option<f32>,
     /// Use this white luminance Yn instead of the reference's 99th percentile.
@@ -57,7 +60,18 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let heat = match &a.heatmap {
         Some(path) => {
             let de = delta_e_map(&img, &reference, yn)?;
-            let max = a.heatmap_max.unwrap_or(error.max_delta_e as f32);
+            let max = match a.heatmap_max {
+                Some(m) => m,
+                None => {
+                    let v: Vec<f64> = de.iter().map(|&x| x as f64).collect();
+                    percentile_nearest_rank(&v, 99).unwrap_or(0.0) as f32
+                }
+            };
+            if !(max >= 0.0 && max.is_finite()) {
+                anyhow::bail!(hirad::Error::Config(format!(
+                    "heatmap maximum {max} must be finite and >= 0"
+                )));
+            }
             heatmap(&de, img.width, img.height, max)?.write(path, 0.0)?;
             Some(path.display().to_string())
         }

@@ -1,5 +1,5 @@
-//! `hirad scene SCENE --out FILE`: write a scene (built-in or loaded) as `.obj` (+ `.mtl`) or
-//! `.glb`.
+//! `hirad scene SCENE --out FILE`: write a scene (built-in or loaded) as `.obj` (+ `.mtl`),
+//! `.glb`, or `.toml` (scene description + `.obj` + `.mtl`, keeping sun, sky and cameras).
 
 use super::info::LoadArgs;
 use crate::Global;
@@ -8,7 +8,8 @@ use crate::Global;
 pub struct Args {
     /// Scene: a built-in name or a file path.
     pub scene: String,
-    /// Output file: `.obj` (writes a `.mtl` next to it) or `.glb`.
+    /// Output file: `.obj` (writes a `.mtl` next to it), `.glb`, or `.toml` (writes `.obj` and
+    /// `.mtl` next to it; keeps sun, sky and cameras).
     #[arg(long, short)]
     pub out: std::path::PathBuf,
     #[command(flatten)]

@@ -145,36 +145,6 @@ impl Out {
     }
 }
 
-/// Stable three-way partition of `src` into `dst` by `class` (0, 1 or 2), without branches
-/// on the class: the classes are recorded in `tags` while counting, then every item is copied
-/// to the next slot of its group. Returns the tight box of the items and the sizes of groups
-/// 0 and 1. The three slices have the same length.
-#[inline]
-pub(crate) fn scatter3(
-    src: &[Item],
-    dst: &mut [Item],
-    tags: &mut [u8],
-    class: impl Fn(&Item) -> u8,
-) -> (Aabb, usize, usize) {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    let mut cnt = [0usize; 4];
-    for (it, t) in src.iter().zip(tags.iter_mut()) {
-        let k = class(it) & 3;
-        *t = k;
-        cnt[k as usize] += 1;
-        lo = lo.min(it.lo);
-        hi = hi.max(it.hi);
-    }
-    let mut off = [0, cnt[0], cnt[0] + cnt[1], src.len()];
-    for (it, &t) in src.iter().zip(tags.iter()) {
-        let o = &mut off[t as usize];
-        dst[*o] = *it;
-        *o += 1;
-    }
-    (Aabb::new(lo, hi), cnt[0], cnt[1])
-}
-
 /// Three-way in-place partition of `items` by `class` (0 = first, 1 = middle, 2 = last),
 /// returning the tight box of all items and the sizes of the first two groups.
 #[inline]

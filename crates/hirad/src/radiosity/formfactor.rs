@@ -10,6 +10,7 @@
 
 use super::element::{Elements, Kind};
 use super::visibility::Visibility;
+use crate::ray::volume::Endpoint;
 use crate::cluster::ClusterTree;
 use crate::rng::SplitMix64;
 use glam::{DVec3, Vec3};
@@ -139,19 +140,22 @@ enum End {
         n: Vec3,
         c: Vec3,
         area: f64,
+        tri: u32,
     },
     Cluster {
         lo: Vec3,
         hi: Vec3,
         c: Vec3,
         area: f64,
+        node: u32,
     },
 }
 
 impl End {
-    fn centroid(&self) -> Vec3 {
+    fn endpoint(&self) -> Endpoint {
         match *self {
-            End::Surface { c, .. } | End::Cluster { c, .. } => c,
+            End::Surface { tri, .. } => Endpoint::Surface(tri),
+            End::Cluster { node, .. } => Endpoint::Cluster(node),
         }
     }
 }
@@ -180,6 +184,7 @@ impl<'a> KernelCtx<'a> {
                 n: e.normal,
                 c: e.centroid,
                 area: e.area as f64,
+                tri: e.tri,
             },
             Kind::Cluster => {
                 let b = self.tree.nodes[e.tri as usize].bbox;
@@ -188,6 +193,7 @@ impl<'a> KernelCtx<'a> {
                     hi: b.max,
                     c: e.centroid,
                     area: e.area as f64,
+                    node: e.tri,
                 }
             }
         }
@@ -218,7 +224,9 @@ impl<'a> KernelCtx<'a> {
     fn point_kernel(x: Vec3, n: Option<Vec3>, src: &End) -> f64 {
         let xd = x.as_dvec3();
         match *src {
-            End::Surface { v, n: nj, c, area } => {
+            End::Surface {
+                v, n: nj, c, area, ..
+            } => {
                 let nn = match n {
                     Some(n) => n.as_dvec3(),
                     None => {
@@ -377,10 +385,8 @@ impl<'a> KernelCtx<'a> {
         if let End::Cluster { lo, hi, .. } = *sy {
             t1 = t1.min(1.0 - exit_param(y, -d, lo, hi));
         }
-        if t0 >= t1 {
-            return 1.0;
-        }
-        self.vis.transmittance(x, d, t0, t1, rx.centroid(), sy.centroid())
+        self.vis
+            .transmittance(x, y, t0, t1, rx.endpoint(), sy.endpoint())
     }
 }
 

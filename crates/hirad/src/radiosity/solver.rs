@@ -170,14 +170,14 @@ impl<'a> Solver<'a> {
         };
         let sun_power = scene
             .sun
-            .map(|s| s.irradiance.as_dvec3().element_sum() * footprint)
+            .map(|s| s.irradiance.as_dvec3().max_element() * footprint)
             .unwrap_or(0.0);
         let sky_power = scene
             .sky
-            .map(|l| std::f64::consts::PI * l.as_dvec3().element_sum() * footprint)
+            .map(|l| std::f64::consts::PI * l.as_dvec3().max_element() * footprint)
             .unwrap_or(0.0);
         let b_ref =
-            (scene.emitted_power().element_sum() + sun_power + sky_power) / total_area.max(1e-30);
+            (scene.emitted_power().max_element() + sun_power + sky_power) / total_area.max(1e-30);
         let eps = cfg.eps.unwrap_or(cfg.eps_rel * b_ref).max(1e-30);
         let min_area = cfg.min_area.unwrap_or(cfg.min_area_rel * total_area);
         let has_sun_sky = scene.sun.is_some() || scene.sky.is_some();

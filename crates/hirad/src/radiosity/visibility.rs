@@ -2,21 +2,23 @@
 //!
 //! `rays` casts each shadow segment through the [`ClusterTree`] with the shared
 //! [`RayCaster`] (paper §3.2.2: one structure for clustering and ray casting). `none` makes
-//! everything mutually visible. `volume` (Sillion 1995 transmittance) is answered by the ray
-//! module's volumetric traversal when it is available; until then asking for it is a
-//! configuration error rather than a silent fallback.
+//! everything mutually visible. `volume` is Sillion's transmittance `τ = exp(−Σ κ_c ℓ_c)`
+//! computed by [`VolumeCaster`] through the same tree, with the link's end elements excluded
+//! (a cluster does not shadow its own exchanges, a surface not itself).
 
 use super::config::VisibilityMode;
 use crate::cluster::ClusterTree;
+use crate::ray::volume::{Endpoint, VolumeCaster};
 use crate::ray::RayCaster;
 use crate::scene::Scene;
-use crate::{Error, Result};
+use crate::Result;
 use glam::Vec3;
 
 /// Visibility oracle of a solve.
 pub struct Visibility<'a> {
     mode: VisibilityMode,
     caster: RayCaster<'a>,
+    volume: Option<VolumeCaster<'a>>,
     /// Volume mode: clusters smaller than `vol_ratio × segment length` act as volumes.
     pub vol_ratio: f32,
 }
@@ -29,16 +31,10 @@ impl<'a> Visibility<'a> {
         mode: VisibilityMode,
         vol_ratio: f32,
     ) -> Result<Self> {
-        if mode == VisibilityMode::Volume {
-            return Err(Error::Config(
-                "--visibility volume needs the volumetric traversal of the ray module, which \
-                 is not available in this build; use rays or none"
-                    .into(),
-            ));
-        }
         Ok(Self {
             mode,
             caster: RayCaster::new(scene, tree),
+            volume: (mode == VisibilityMode::Volume).then(|| VolumeCaster::new(scene, tree)),
             vol_ratio,
         })
     }
@@ -48,23 +44,26 @@ impl<'a> Visibility<'a> {
         self.mode
     }
 
-    /// Fraction of light passing along `origin + t·dir`, `t ∈ [t0, t1]`: 0 or 1 for rays,
-    /// 1 for `none`. `_from` and `_to` are the centres of the link ends (used by the volume
-    /// traversal to exclude the end clusters).
+    /// Fraction of light passing from `x` to `y`: for rays, 0 or 1 from the segment
+    /// `x + t (y − x)`, `t ∈ [t0, t1]`; for volumes, the transmittance of the whole segment with
+    /// the end elements `a` and `b` excluded; 1 for `none`.
     #[inline]
     pub fn transmittance(
         &self,
-        origin: Vec3,
-        dir: Vec3,
+        x: Vec3,
+        y: Vec3,
         t0: f32,
         t1: f32,
-        _from: Vec3,
-        _to: Vec3,
+        a: Endpoint,
+        b: Endpoint,
     ) -> f64 {
-        match self.mode {
-            VisibilityMode::None => 1.0,
-            VisibilityMode::Rays | VisibilityMode::Volume => {
-                if self.caster.occluded(origin, dir, t0, t1) {
+        match (self.mode, &self.volume) {
+            (VisibilityMode::None, _) => 1.0,
+            (VisibilityMode::Volume, Some(v)) => v.transmittance(x, y, self.vol_ratio, a, b) as f64,
+            _ => {
+                if t0 >= t1 {
+                    1.0
+                } else if self.caster.occluded(x, y - x, t0, t1) {
                     0.0
                 } else {
                     1.0

@@ -22,6 +22,7 @@ pub mod volume;
 pub mod watertight;
 
 use crate::cluster::ClusterTree;
+use crate::geom::Aabb;
 use crate::scene::Scene;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -133,7 +134,7 @@ struct Child {
 }
 
 impl Child {
-    fn new(b: &crate::geom::Aabb, node: NodeRef) -> Child {
+    fn new(b: &Aabb, node: NodeRef) -> Child {
         Child {
             lo: [b.min.x, b.min.y, b.min.z, f32::NEG_INFINITY],
             hi: [b.max.x, b.max.y, b.max.z, f32::INFINITY],
@@ -209,13 +210,28 @@ impl Layout {
             nc += c;
             ntri += t;
         }
+        // Boxes: the strategy's box, grown to contain everything below exactly (strategies
+        // may leave an f32 slack that `validate` tolerates; a ray grazing such a triangle must
+        // still reach it, so that the result equals brute force for any tree).
+        let mut bound = vec![Aabb::EMPTY; n];
+        for &id in order.iter().rev() {
+            let mut b = tree.nodes[id as usize].bbox;
+            for s in surfs(id) {
+                let _ = s;
+            }
+            for c in kids(id) {
+                let cb = bound[c as usize];
+                b.grow_box(&cb);
+            }
+            bound[id as usize] = b;
+        }
         // Pass 2: fill them in.
         let mut children = Vec::with_capacity(nc as usize);
         let mut tris = Vec::with_capacity(ntri as usize);
         let mut tri_id = Vec::with_capacity(ntri as usize);
         for &id in &order {
             for c in kids(id) {
-                children.push(Child::new(&tree.nodes[c as usize].bbox, refs[c as usize]));
+                children.push(Child::new(&bound[c as usize], refs[c as usize]));
             }
             for s in surfs(id) {
                 let [a, b, c] = scene.tri_vertices(s as usize);
@@ -224,7 +240,7 @@ impl Layout {
             }
         }
         Layout {
-            root: Some(Child::new(&tree.nodes[0].bbox, refs[0])),
+            root: Some(Child::new(&bound[0], refs[0])),
             children,
             tris,
             tri_id,

@@ -203,6 +203,12 @@ pub fn rasterize_with_stats(
     }
     let frame = view.frame();
     let (sw, sh) = (view.width * ss, view.height * ss);
+    if sw > 65536 || sh > 65536 {
+        return Err(Error::Config(format!(
+            "{}x{} pixels with {ss}x{ss} supersampling exceed 65536 samples per row or column",
+            view.width, view.height
+        )));
+    }
 
     let clip: Vec<Vec3> = mesh
         .positions

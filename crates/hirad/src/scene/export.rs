@@ -349,16 +349,67 @@ fn read_colored_gltf(path: &Path) -> Result<ColoredMesh> {
     r.unwrap_or_else(|_| Err(Error::input(path, "malformed glTF (the reader panicked)")))
 }
 
-/// Write a whole scene (geometry, objects, materials) as `.obj` (+ `.mtl`) or `.glb`.
+/// Write a whole scene (geometry, objects, materials) as `.obj` (+ `.mtl`), `.glb`, or `.toml`
+/// (a scene description next to `<stem>.obj` + `<stem>.mtl`, keeping sun, sky, cameras and up
+/// axis, which OBJ and glTF files do not carry).
 pub fn write_scene(path: &Path, scene: &Scene) -> Result<()> {
     match ext_of(path).as_str() {
         "obj" => write_scene_obj(path, scene),
         "glb" => write_scene_glb(path, scene),
+        "toml" => write_scene_toml(path, scene),
         e => Err(Error::Config(format!(
-            "{}: cannot write scenes as '.{e}' (use .obj or .glb)",
+            "{}: cannot write scenes as '.{e}' (use .obj, .glb or .toml)",
             path.display()
         ))),
     }
+}
+
+fn toml_vec(v: Vec3) -> String {
+    format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
+}
+
+/// Write `scene` as a TOML scene description (`super::desc`) plus `<stem>.obj` and `<stem>.mtl`
+/// in the same directory.
+pub fn write_scene_toml(path: &Path, scene: &Scene) -> Result<()> {
+    let obj = path.with_extension("obj");
+    write_scene_obj(&obj, scene)?;
+    let obj_name = obj
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let q = |s: &str| serde_json::to_string(s).unwrap_or_else(|_| "\"\"".into());
+    let mut t = String::new();
+    t += &format!("# hirad scene '{}'\n", scene.name);
+    t += &format!("name = {}\n", q(&scene.name));
+    t += match scene.up {
+        super::UpAxis::Y => "up = \"y\"\n",
+        super::UpAxis::Z => "up = \"z\"\n",
+    };
+    if let Some(sky) = scene.sky {
+        t += &format!("sky = {}\n", toml_vec(sky));
+    }
+    t += &format!("\n[[mesh]]\nfile = {}\n", q(&obj_name));
+    if let Some(sun) = scene.sun {
+        t += &format!(
+            "\n[sun]\ndirection = {}\nirradiance = {}\n",
+            toml_vec(sun.direction),
+            toml_vec(sun.irradiance)
+        );
+    }
+    for c in &scene.cameras {
+        t += &format!(
+            "\n[[camera]]\nname = {}\neye = {}\ntarget = {}\nup = {}\nfov = {:?}\n\
+             width = {}\nheight = {}\n",
+            q(&c.name),
+            toml_vec(c.eye),
+            toml_vec(c.target),
+            toml_vec(c.up),
+            c.fov_deg,
+            c.width,
+            c.height
+        );
+    }
+    write_bytes_atomic(path, t.as_bytes())
 }
 
 /// Write `scene` as OBJ with a material library `<stem>.mtl` in the same directory.
