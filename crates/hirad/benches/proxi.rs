@@ -4,7 +4,8 @@
 //! rayon thread and the default pool) of `okdt`, `okdt-p` and `proxi`, the ratios to `okdt`,
 //! and statistics of the trees; then the scaling of `proxi` from n to 4n triangles on a
 //! generated scene (O(n log n) gives a ratio a little above 4; O(n²) would give 16).
-//! FILTER selects scenes whose name contains it (`gen`, `graz`, `copper`, `bathroom`, `scaling`).
+//! FILTER selects the parts whose name contains it (`generated`, `graz_office`, `copper_beech`,
+//! `bathroom`, `degenerate`, `scaling`).
 
 use glam::Vec3;
 use hirad::cluster::{okdt, okdt_p, proxi, BuildTree, ClusterConfig, ClusterTree, Prims, Strategy};
@@ -165,7 +166,7 @@ fn bench_scene(name: &str, prims: &Prims, runs: usize) {
 fn main() {
     let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with("--"));
     let want = |name: &str| filter.as_deref().is_none_or(|f| name.contains(f));
-    if want("gen") {
+    if want("generated") {
         for n in [250_000, 1_000_000] {
             bench_scene(&format!("generated-{n}"), &generated(n, 1), 3);
         }

@@ -544,5 +544,25 @@ fn graz_office_trees_are_valid() {
         if s == Strategy::Okdt {
             assert!(t.nodes.iter().all(|n| n.num_children <= 2));
         }
+        // Regression goldens of the top-down strategies on this scene (26,928 triangles):
+        // (clusters, max depth, max surfaces on one cluster, overlap to 3 decimals). They
+        // depend only on the set of triangles, not on their order.
+        let golden = match s {
+            Strategy::Kdt => Some((4928, 30, 420, 0.0)),
+            Strategy::Obt => Some((6296, 31, 429, 11.995)),
+            Strategy::Okdt => Some((3945, 24, 429, 9.537)),
+            Strategy::TfOct => Some((8440, 11, 184, 245.337)),
+            Strategy::Sah => Some((17821, 27, 4, 810.986)),
+            _ => None,
+        };
+        if let Some((clusters, depth, smax, overlap)) = golden {
+            assert_eq!(scene.num_triangles(), 26_928);
+            assert_eq!(
+                (st.clusters, st.depth_max, st.surfaces_per_cluster_max),
+                (clusters, depth, smax),
+                "{s}"
+            );
+            assert!((st.overlap - overlap).abs() < 5e-4, "{s}: {}", st.overlap);
+        }
     }
 }

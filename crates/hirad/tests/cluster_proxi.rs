@@ -392,6 +392,15 @@ fn degenerate_inputs_do_not_panic() {
             "identical triangles",
             vec![[Vec3::ZERO, Vec3::X, Vec3::Y]; 4000],
         ),
+        ("tiny surfaces 10^6 sizes apart", {
+            let mut r = SplitMix64::new(8);
+            (0..3000)
+                .map(|_| {
+                    let a = Vec3::new(r.next_f32(), r.next_f32(), r.next_f32()) * 1000.0;
+                    [a, a + Vec3::X * 1e-4, a + Vec3::Y * 1e-4]
+                })
+                .collect()
+        }),
         ("sizes over 12 decades", {
             let mut v = random_tris(500, 1e6, 1e5, 5);
             v.extend(random_tris(500, 1e-3, 1e-6, 6));

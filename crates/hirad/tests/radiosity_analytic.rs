@@ -128,7 +128,7 @@ fn reciprocity_on_random_pairs() {
         worst = worst.max(rel);
         tested += 1;
     }
-    assert!(worst < 0.02, "reciprocity error {worst}");
+    assert!(worst < 5e-3, "reciprocity error {worst}");
 }
 
 /// A room-like open scene: floor, two walls, a ceiling light, an open side.
@@ -238,7 +238,10 @@ fn same_solution_with_1_and_2_threads() {
         ..SolverConfig::default()
     };
     let run = |n: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap();
         pool.install(|| solve(&scene, &tree, &cfg, &NoProgress).unwrap())
     };
     let a = run(1);
@@ -246,7 +249,10 @@ fn same_solution_with_1_and_2_threads() {
     assert_eq!(a.stats.links, b.stats.links);
     assert_eq!(a.stats.elements, b.stats.elements);
     assert_eq!(a.stats.rays, b.stats.rays);
-    assert_eq!(a.elements.b, b.elements.b, "radiosity differs between thread counts");
+    assert_eq!(
+        a.elements.b, b.elements.b,
+        "radiosity differs between thread counts"
+    );
     println!("1 vs 2 threads: {} elements identical", a.elements.b.len());
 }
 
@@ -262,4 +268,47 @@ fn no_emitter_gives_zero_and_says_so() {
     assert!(sol.stats.warnings.iter().any(|w| w.contains("no light")));
     assert!(sol.elements.b.iter().all(|b| *b == glam::DVec3::ZERO));
     assert_eq!(sol.stats.power.emitted, 0.0);
+}
+
+#[test]
+fn memory_budget_stops_refinement() {
+    let scene = open_scene();
+    let tree = tree_by_object(&scene);
+    let base = SolverConfig {
+        eps: Some(1e-3),
+        ..SolverConfig::default()
+    };
+    let free = solve(&scene, &tree, &base, &NoProgress).unwrap();
+    let budget = free.stats.memory.peak_counted_bytes / 4;
+    let cfg = SolverConfig {
+        max_memory: Some(budget),
+        ..base
+    };
+    let capped = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+    let m = &capped.stats.memory;
+    println!(
+        "budget {budget} B: links {} (free {}), peak counted {} B (free {} B)",
+        capped.stats.links,
+        free.stats.links,
+        m.peak_counted_bytes,
+        free.stats.memory.peak_counted_bytes
+    );
+    assert!(!free.stats.memory.budget_hit);
+    assert!(m.budget_hit);
+    assert!(capped
+        .stats
+        .warnings
+        .iter()
+        .any(|w| w.contains("memory budget")));
+    assert!(capped.stats.links < free.stats.links);
+    // Vectors grow by doubling after the projection, so allow that slack.
+    assert!(
+        m.peak_counted_bytes <= 2 * budget,
+        "{} > 2 × {budget}",
+        m.peak_counted_bytes
+    );
+    // Still a converged, energy-consistent solution.
+    assert!(capped.stats.converged);
+    let p = &capped.stats.power;
+    assert!((p.absorbed + p.escaping - p.emitted).abs() < 1e-3 * p.emitted);
 }

@@ -112,7 +112,12 @@ fn cloud_tree(scene: &Scene) -> (ClusterTree, u32) {
         children: vec![c],
         surfaces: vec![n - 2, n - 1],
     });
-    let t = ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default());
+    let t = ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    );
     t.validate(&prims).unwrap();
     (t, 1)
 }
@@ -181,7 +186,10 @@ fn cluster_receives_projected_area_quarter() {
              through cluster links {via_links:.6e}, {} cluster-surface links",
             sol.stats.links_cs
         );
-        assert!(sol.stats.links_cs >= 2, "the square must link to the cloud as a cluster");
+        assert!(
+            sol.stats.links_cs >= 2,
+            "the square must link to the cloud as a cluster"
+        );
         assert!(
             (received - via_links).abs() <= 1e-9 * received,
             "surfaces got {received}, links delivered {via_links}"

@@ -34,25 +34,23 @@ fn cornell_solution_agrees_with_the_path_tracer() {
         let sol = solve(&s, &tree, &cfg, &NoProgress).unwrap();
         let mesh = radiosity_mesh(&sol, &s, false);
         let e = solution_error(&mesh, &v, &refimg);
-        let img = hirad::render::render_solution(
-            &mesh,
-            &v,
-            &hirad::render::RasterOptions {
-                supersample: 2,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        let ratio = img.mean() / refimg.mean();
         println!(
-            "cornell {preset}: RMS dE {:.3}, rel RMSE {:.4}, mean ratio {ratio} (reference noise: RMS dE {:.3}, rel RMSE {:.4})",
+            "cornell {preset}: RMS dE {:.3}, rel RMSE {:.4} (reference noise: RMS dE {:.3}, rel RMSE {:.4})",
             e.rms_delta_e, e.rel_rmse, noise.rms_delta_e, noise.rel_rmse
         );
         errors.push(e);
     }
     let d = &errors[1];
-    // Close agreement: within a few times the noise of a 64-spp reference, and under 15% in
-    // linear RGB.
+    // Close agreement: the default solution is within 3× the noise of a 256-spp reference
+    // in ΔE, and its linear error (dominated by the edges of the bright light) under 15%.
     assert!(d.rel_rmse < 0.15, "rel RMSE {}", d.rel_rmse);
-    assert!(d.rms_delta_e < 3.0 * noise.rms_delta_e.max(2.0), "{}", d.rms_delta_e);
+    assert!(
+        d.rms_delta_e < 3.0 * noise.rms_delta_e,
+        "{} vs noise {}",
+        d.rms_delta_e,
+        noise.rms_delta_e
+    );
+    // Finer presets get closer to the reference.
+    assert!(errors[0].rms_delta_e > errors[1].rms_delta_e);
+    assert!(errors[1].rms_delta_e > errors[2].rms_delta_e);
 }

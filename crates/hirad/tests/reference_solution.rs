@@ -1,8 +1,7 @@
 //! Solution-vs-reference comparisons through the image metric: the exact furnace solution
 //! (B = E/(1−ρ) on every vertex) rasterised against the path-traced furnace, and the noise of
-//! the Cornell reference shrinking as 1/√spp. The Cornell solver-vs-reference test uses the same
-//! helper: solve `cornell`, export the per-vertex `ColoredMesh`, then
-//! `reference_common::solution_error(&mesh, &view, &reference_image)`.
+//! the Cornell reference shrinking as 1/√spp. The Cornell solver-vs-reference test
+//! (`reference_cornell.rs`) uses the same helper, `reference_common::solution_error`.
 
 mod reference_common;
 

@@ -376,6 +376,59 @@ fn back_faces_black_culled_or_shaded() {
     assert!((run(BackFaces::Shade) - Vec3::splat(0.7)).length() < 1e-6);
 }
 
+/// Two-sided meshes carry each surface twice (reversed winding for the back): the front face
+/// wins over the coinciding back face in either order, in every back-face mode.
+#[test]
+fn front_face_wins_over_a_coinciding_back_face() {
+    let view = front_view(40);
+    let (mut p, mut t) = quad(-2.0, -2.0, 2.0, 2.0, 0.3);
+    p.extend(p.clone());
+    t.extend([[4u32, 6, 5], [4, 7, 6]]); // the same quad facing away
+    let mut col = vec![Vec3::new(0.2, 0.4, 0.6); 4];
+    col.extend([Vec3::new(0.9, 0.1, 0.1); 4]);
+    for rev in [false, true] {
+        let tris: Vec<[u32; 3]> = if rev {
+            t.iter().rev().cloned().collect()
+        } else {
+            t.clone()
+        };
+        let mesh = RasterMesh {
+            positions: &p,
+            triangles: &tris,
+            colors: MeshColors::PerVertex(&col),
+        };
+        for back_faces in [BackFaces::Black, BackFaces::Cull, BackFaces::Shade] {
+            let opts = RasterOptions {
+                back_faces,
+                ..Default::default()
+            };
+            let img = rasterize(&mesh, &view, &opts).unwrap();
+            let n = img
+                .pixels
+                .iter()
+                .filter(|px| (**px - col[0]).length() < 1e-5)
+                .count();
+            assert_eq!(n, covered_quad_pixels(), "{back_faces:?} reversed {rev}");
+        }
+    }
+}
+
+/// Pixels covered by the [−2, 2]² quad at z = 0.3 alone in `front_view(40)` (20/4.7 pixels per
+/// unit: x_px ∈ [11.49, 28.51], centres 11.5 ..= 28.5, an 18 × 18 pixel square).
+fn covered_quad_pixels() -> usize {
+    let view = front_view(40);
+    let (p, t) = quad(-2.0, -2.0, 2.0, 2.0, 0.3);
+    let c = white(4);
+    let mesh = RasterMesh {
+        positions: &p,
+        triangles: &t,
+        colors: MeshColors::PerVertex(&c),
+    };
+    let n = covered(&rasterize(&mesh, &view, &RasterOptions::default()).unwrap());
+    assert_eq!(n, 18 * 18);
+    n
+}
+
 #[test]
 fn solution_pixels_are_radiosity_over_pi() {
     let view = front_view(32);
@@ -490,4 +543,50 @@ fn bad_input_is_an_error_not_a_panic() {
         covered(&rasterize(&mesh, &view, &RasterOptions::default()).unwrap()),
         0
     );
+}
+
+/// Signed distance (pixels) from `p` to the inside of the screen triangle `t` (positive
+/// inside): the minimum over the three edges.
+fn inside_distance(t: [(f32, f32); 3], p: (f32, f32)) -> f32 {
+    let area = (t[1].0 - t[0].0) * (t[2].1 - t[0].1) - (t[1].1 - t[0].1) * (t[2].0 - t[0].0);
+    let s = area.signum();
+    (0..3)
+        .map(|k| {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let (ex, ey) = (b.0 - a.0, b.1 - a.1);
+            s * (ex * (p.1 - a.1) - ey * (p.0 - a.0)) / (ex * ex + ey * ey).sqrt()
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// Every pixel whose centre is inside a random triangle (by more than the 1/256-pixel
+    /// snapping) is covered, and no pixel whose centre is outside is.
+    #[test]
+    fn coverage_matches_the_exact_triangle(
+        c in proptest::collection::vec(-4.0f32..4.0, 6),
+        z in proptest::collection::vec(-1.0f32..1.0, 3),
+    ) {
+        let view = front_view(48);
+        let p: Vec<Vec3> = (0..3).map(|i| Vec3::new(c[2 * i], c[2 * i + 1], z[i])).collect();
+        let t = [[0u32, 1, 2]];
+        let col = white(3);
+        let opts = RasterOptions { back_faces: BackFaces::Shade, ..Default::default() };
+        let mesh = RasterMesh { positions: &p, triangles: &t, colors: MeshColors::PerVertex(&col) };
+        let img = rasterize(&mesh, &view, &opts).unwrap();
+        let f = view.frame();
+        let s = [0, 1, 2].map(|i| f.project(p[i]).unwrap());
+        for y in 0..48 {
+            for x in 0..48 {
+                let d = inside_distance(s, (x as f32 + 0.5, y as f32 + 0.5));
+                let cov = img.get(x, y).x > 0.5;
+                if d > 0.01 {
+                    proptest::prop_assert!(cov, "({x}, {y}) inside by {d} not covered");
+                } else if d < -0.01 {
+                    proptest::prop_assert!(!cov, "({x}, {y}) outside by {d} covered");
+                }
+            }
+        }
+    }
 }

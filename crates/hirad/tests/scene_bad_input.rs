@@ -17,7 +17,7 @@ fn load(p: &Path) -> hirad::Result<Scene> {
 
 /// Assert an `Error::Input` for `file` at `line` whose message contains `needle`.
 fn assert_input(r: hirad::Result<Scene>, file: &Path, line: Option<usize>, needle: &str) {
-    let e = r.err().expect("expected an error");
+    let e = r.expect_err("expected an error");
     let text = e.to_string();
     match &e {
         Error::Input {

@@ -369,7 +369,10 @@ mod props {
 
     /// A polygon soup: vertices and faces of 3 to 6 corners, with a style per corner
     /// (0: `v`, 1: `v/t`, 2: `v//n`, 3: `v/t/n`, 4: negative relative index).
-    fn soup() -> impl Strategy<Value = (Vec<[f32; 3]>, Vec<Vec<(u32, u8)>>)> {
+    /// Vertices and faces of (vertex, corner style).
+    type Soup = (Vec<[f32; 3]>, Vec<Vec<(u32, u8)>>);
+
+    fn soup() -> impl Strategy<Value = Soup> {
         prop::collection::vec(prop::array::uniform3(-1e3f32..1e3), 3..40).prop_flat_map(|v| {
             let n = v.len() as u32;
             let face = prop::collection::vec((0..n, 0u8..5), 3..7);
@@ -457,4 +460,58 @@ fn scene_toml_round_trip_keeps_lights_and_cameras() {
         assert_eq!(r.cameras, s.cameras);
         same_materials(&s, &r, 0.0);
     }
+}
+
+fn base64(data: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in data.chunks(3) {
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+/// Embedded (data URI) buffer; `TRIANGLE_STRIP` and `TRIANGLE_FAN` primitives keep the
+/// counter-clockwise orientation of the glTF spec; a file without scenes uses its root nodes.
+#[test]
+fn gltf_strips_fans_and_data_uri() {
+    let d = tempfile::tempdir().unwrap();
+    let mut bin = Vec::new();
+    let strip = [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.]];
+    let fan = [[0f32, 0., 1.], [2., 0., 1.], [2., 2., 1.], [0., 2., 1.]];
+    for p in strip.iter().chain(&fan) {
+        for x in p {
+            bin.extend(x.to_le_bytes());
+        }
+    }
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}},
+        "buffers": [{{"uri": "data:application/octet-stream;base64,{}", "byteLength": 96}}],
+        "bufferViews": [{{"buffer": 0, "byteLength": 96}}],
+        "accessors": [
+          {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+            "min": [0,0,0], "max": [1,1,0]}},
+          {{"bufferView": 0, "byteOffset": 48, "componentType": 5126, "count": 4, "type": "VEC3",
+            "min": [0,0,1], "max": [2,2,1]}}],
+        "meshes": [{{"name": "sheet", "primitives": [{{"attributes": {{"POSITION": 0}}, "mode": 5}},
+                                   {{"attributes": {{"POSITION": 1}}, "mode": 6}}]}}],
+        "nodes": [{{"mesh": 0}}]}}"#,
+        base64(&bin)
+    );
+    let p = d.path().join("sf.gltf");
+    std::fs::write(&p, json).unwrap();
+    let s = load(&p);
+    assert_eq!(s.num_triangles(), 4);
+    assert_eq!(s.objects, vec!["sheet".to_string()]);
+    assert!(s.normals.iter().all(|n| *n == Vec3::Z), "{:?}", s.normals);
+    assert!(close(s.total_area(), 1.0 + 4.0, 1e-6));
 }

@@ -8,7 +8,9 @@ use anyhow::Context;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::{NoProgress, Progress};
 use hirad::radiosity::config::parse_bytes;
-use hirad::radiosity::{output, solve_cancellable, Oracle, Reception, SolverConfig, VisibilityMode};
+use hirad::radiosity::{
+    output, solve_cancellable, Oracle, Reception, SolverConfig, VisibilityMode,
+};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -165,14 +167,23 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     println!(
         "elements {} ({} leaves), links {} (ss {}, cs {}, cc {}), {:.1}% of the gathered \
          energy through cluster links",
-        st.elements, st.leaf_elements, st.links, st.links_ss, st.links_cs, st.links_cc,
+        st.elements,
+        st.leaf_elements,
+        st.links,
+        st.links_ss,
+        st.links_cs,
+        st.links_cc,
         st.cluster_energy_percent
     );
     println!(
         "{} iterations ({}), {} rays; time {:.3} s (refine {:.3}, gather {:.3}, push-pull \
          {:.3}); peak memory {:.1} MB counted{}",
         st.iterations,
-        if st.converged { "converged" } else { "NOT converged" },
+        if st.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        },
         st.rays,
         st.time.total,
         st.time.refine,

@@ -5,6 +5,12 @@
 //! surfaces attached directly to a node are a contiguous slice of [`ClusterTree::surfaces`].
 //! Strategies build a loose [`BuildTree`] (one file per strategy in this module) which
 //! [`ClusterTree::from_build`] lays out breadth-first.
+//!
+//! The top-down strategies (`kdt`, `obt`, `okdt`, `tf-oct`, `sah`) partition an array of
+//! per-surface records in place and build subtrees of more than a few thousand surfaces on
+//! separate rayon tasks; node ids are assigned as a sequential run would, so a tree never
+//! depends on the thread count. [`stats`] computes the statistics `hirad clusters` reports,
+//! [`dump`] writes the boxes as a wireframe.
 
 use crate::geom::Aabb;
 use crate::scene::Scene;

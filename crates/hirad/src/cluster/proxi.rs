@@ -41,12 +41,23 @@
 //! makes it deterministic; sorting and per-object setup run in parallel with keys that are
 //! unique, so the tree does not depend on the thread count.
 //!
+//! A surface passed up alone for the second time skips the levels at which it cannot be
+//! grouped at all: a group holding it and any other object contains both box centres, so its
+//! size is at least the maximum-norm distance `D` from the surface's box centre to the nearest
+//! other surface's box centre, while groups of level `j` have size `≤ 2 c_j`; the surface goes
+//! straight to the finest level `j ≤ k − 1` with `2 c_j ≥ D` (`D` from a k-d tree over the
+//! surface centres, built only when some surface needs it). Up to f32 rounding at the level
+//! boundary, the skipped levels could not have grouped the surface anyway; the skip only
+//! frees the candidate slots it would have taken there.
+//!
 //! # Cost
 //! Each level sorts its objects (O(m log m)) and visits every object once, with a bounded
 //! number of candidates (hash lookups of 27 cells, at most 16 candidates, at most
 //! `max_children` greedy rounds) and a path-compressed "next ungrouped" skip list. Every group
-//! of ≥ 2 objects removes at least one object, and singletons move one level up, so the total
-//! is O(n log n) expected for scenes whose surface sizes span a bounded number of levels.
+//! of ≥ 2 objects removes at least one object, and singletons move one level up (or skip as
+//! above), so the total is O(n log n) expected when objects group within a bounded number of
+//! levels of their own size, as surfaces of meshes do. Scenes of isolated surfaces much
+//! smaller than their spacing cost O(n) per level between the two scales.
 
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use crate::geom::Aabb;

@@ -303,7 +303,11 @@ mod tests {
         ];
         for (r, row) in want.iter().enumerate() {
             for (c, &v) in row.iter().enumerate() {
-                assert!((m.row(r)[c] - v).abs() < 1e-6, "({r}, {c}): {}", m.row(r)[c]);
+                assert!(
+                    (m.row(r)[c] - v).abs() < 1e-6,
+                    "({r}, {c}): {}",
+                    m.row(r)[c]
+                );
             }
         }
     }

@@ -165,8 +165,8 @@ impl SolverConfig {
     pub const PRESETS: [&'static str; 4] = ["fast", "default", "fine", "reference"];
 
     /// A named preset: `fast` (ε×4, 1 shadow ray, elements ×4 larger), `default`, `fine`
-    /// (ε/4, 8 rays, elements /4), `reference` (ε/50, 16 rays, elements /4: nearly no energy
-    /// through clusters, the furnace-accurate setting).
+    /// (ε/4, 8 rays: little energy left on cluster links, the furnace-accurate setting),
+    /// `reference` (ε/16, 16 rays, elements /4).
     pub fn preset(name: &str) -> Result<SolverConfig> {
         let d = SolverConfig::default();
         Ok(match name {
@@ -180,11 +180,10 @@ impl SolverConfig {
             "fine" => SolverConfig {
                 eps_rel: d.eps_rel / 4.0,
                 shadow_rays: 8,
-                min_area_rel: d.min_area_rel / 4.0,
                 ..d
             },
             "reference" => SolverConfig {
-                eps_rel: d.eps_rel / 50.0,
+                eps_rel: d.eps_rel / 16.0,
                 shadow_rays: 16,
                 min_area_rel: d.min_area_rel / 4.0,
                 ..d
@@ -215,7 +214,10 @@ impl SolverConfig {
             }
         }
         if !(self.min_area_rel.is_finite() && self.min_area_rel >= 0.0) {
-            return bad(format!("min-area-rel must be >= 0, got {}", self.min_area_rel));
+            return bad(format!(
+                "min-area-rel must be >= 0, got {}",
+                self.min_area_rel
+            ));
         }
         if self.shadow_rays == 0 || self.shadow_rays > 1024 {
             return bad(format!(
@@ -230,7 +232,10 @@ impl SolverConfig {
             return bad("max-iters must be >= 1".into());
         }
         if !(self.tol_converge.is_finite() && self.tol_converge >= 0.0) {
-            return bad(format!("tol-converge must be >= 0, got {}", self.tol_converge));
+            return bad(format!(
+                "tol-converge must be >= 0, got {}",
+                self.tol_converge
+            ));
         }
         if self.sky_rays == 0 {
             return bad("sky-rays must be >= 1".into());
@@ -242,9 +247,7 @@ impl SolverConfig {
 /// Parse a byte size such as `4GB`, `512MiB`, `100M`, `2e9` (decimal and binary units).
 pub fn parse_bytes(s: &str) -> Result<u64> {
     let t = s.trim();
-    let split = t
-        .find(|c: char| c.is_ascii_alphabetic())
-        .unwrap_or(t.len());
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
     let (num, unit) = t.split_at(split);
     let v: f64 = num
         .trim()

@@ -161,7 +161,8 @@ impl Elements {
         for id in (0..nc as usize).rev() {
             let (mut a, mut c, mut r) = (0f64, DVec3::ZERO, DVec3::ZERO);
             let e = &elems[id];
-            for &k in &cluster_kids[e.first_child as usize..(e.first_child + e.num_children) as usize]
+            for &k in
+                &cluster_kids[e.first_child as usize..(e.first_child + e.num_children) as usize]
             {
                 if k < nc {
                     let (ka, kc, kr) = acc[k as usize];

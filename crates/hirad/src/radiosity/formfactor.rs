@@ -10,8 +10,8 @@
 
 use super::element::{Elements, Kind};
 use super::visibility::Visibility;
-use crate::ray::volume::Endpoint;
 use crate::cluster::ClusterTree;
+use crate::ray::volume::Endpoint;
 use crate::rng::SplitMix64;
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
@@ -288,10 +288,8 @@ impl<'a> KernelCtx<'a> {
     pub fn evaluate(&self, i: u32, j: u32, bounds: bool) -> KernelEval {
         let (ri, sj) = (self.end(i), self.end(j));
         let n = self.n_rays.max(1);
-        let mut rng = SplitMix64::for_item(
-            self.seed ^ 0x5EED_0F_11_4C,
-            ((i as u64) << 32) | j as u64,
-        );
+        let mut rng =
+            SplitMix64::for_item(self.seed ^ 0x005E_ED0F_114C, ((i as u64) << 32) | j as u64);
         let mut su = Vec::with_capacity(n);
         let mut sv = Vec::with_capacity(n);
         stratified_2d(n, &mut rng, &mut su);
@@ -447,7 +445,10 @@ mod tests {
         assert!((f - exact).abs() < 1e-9, "{f} {exact}");
         assert!((f - 0.138_53).abs() < 1e-4);
         // Behind the emitting side: zero; a huge polygon fills the hemisphere: 1.
-        assert_eq!(point_to_polygon(DVec3::ZERO, DVec3::Z, &square(1.0, true), DVec3::Z), 0.0);
+        assert_eq!(
+            point_to_polygon(DVec3::ZERO, DVec3::Z, &square(1.0, true), DVec3::Z),
+            0.0
+        );
         let big = [
             DVec3::new(-1e4, -1e4, 1.0),
             DVec3::new(-1e4, 1e4, 1.0),

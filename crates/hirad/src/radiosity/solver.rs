@@ -302,7 +302,11 @@ impl<'a> Solver<'a> {
             let msg = format!(
                 "not converged after {} iterations (last relative change {:.2e} > {:.1e})",
                 self.stats.iterations,
-                self.stats.history.last().map(|h| h.rel_change).unwrap_or(0.0),
+                self.stats
+                    .history
+                    .last()
+                    .map(|h| h.rel_change)
+                    .unwrap_or(0.0),
                 self.cfg.tol_converge
             );
             tracing::warn!("{msg}");
@@ -701,8 +705,10 @@ impl<'a> Solver<'a> {
                         // Cosine-weighted direction about n.
                         let r = d[0].sqrt();
                         let phi = std::f32::consts::TAU * d[1];
-                        let w = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - d[0]).max(0.0).sqrt())
-                            .normalize_or_zero();
+                        let w = (t * (r * phi.cos())
+                            + b * (r * phi.sin())
+                            + n * (1.0 - d[0]).max(0.0).sqrt())
+                        .normalize_or_zero();
                         if w.dot(up) <= 0.0 {
                             continue;
                         }

@@ -9,9 +9,18 @@
 //! depth-first pre-order, the boxes of a node's children stored contiguously with the node
 //! (one slab test per child, done by the parent), the triangles attached to each node copied in
 //! node order. Surfaces may hang at inner nodes as well as leaves, boxes may overlap and a node
-//! may have any number of children. The triangle test is watertight ([`watertight`]); the box
-//! test is conservative, so the result equals a brute-force loop over every triangle
-//! ([`RayCaster::occluded_brute`], [`RayCaster::closest_brute`]).
+//! may have any number of children. The triangle test is watertight ([`watertight`]) and
+//! computes the hit distance accurately (f64 plane equation); the box test is conservative
+//! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
+//! are the strategy's boxes grown to contain their contents exactly, so the result equals a
+//! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
+//! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
+//! strategies.
+//!
+//! Binary nodes push the nearer child last (visited first) also for occlusion; closest-hit
+//! queries sort the hit children of any node by entry distance and skip entries farther than
+//! the current hit. Counters ([`RayStats`]) are compiled in only for the `*_stats` entry
+//! points (const generic), so the plain queries carry no counting cost.
 //!
 //! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
@@ -217,7 +226,7 @@ impl Layout {
         for &id in order.iter().rev() {
             let mut b = tree.nodes[id as usize].bbox;
             for s in surfs(id) {
-                let _ = s;
+                b.grow_box(&scene.tri_bbox(s as usize));
             }
             for c in kids(id) {
                 let cb = bound[c as usize];
@@ -247,6 +256,25 @@ impl Layout {
             tree_id: order,
         }
     }
+}
+
+/// Hint the cache to load what visiting `n` reads first (its children block and triangles).
+#[inline(always)]
+fn prefetch_node(l: &Layout, n: &NodeRef) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let c = l.children.as_ptr().wrapping_add(n.first_child as usize) as *const i8;
+        let t = l.tris.as_ptr().wrapping_add(n.tri_start as usize) as *const i8;
+        // SAFETY: a prefetch is only a hint and never faults, whatever the address.
+        #[allow(unused_unsafe)]
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(c);
+            _mm_prefetch::<_MM_HINT_T0>(t);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (l, n);
 }
 
 /// Traversal stack kept in a fixed array on the machine stack (not initialised), spilling to
@@ -555,6 +583,8 @@ impl<'a> RayCaster<'a> {
                 let h1 = r.slab4(&c1.lo, &c1.hi, tmin, tmax);
                 match (h0, h1) {
                     (Some(t0), Some(t1)) => {
+                        prefetch_node(l, &c0.node);
+                        prefetch_node(l, &c1.node);
                         if t0 <= t1 {
                             stack.push(c1.node);
                             stack.push(c0.node);
@@ -563,14 +593,21 @@ impl<'a> RayCaster<'a> {
                             stack.push(c1.node);
                         }
                     }
-                    (Some(_), None) => stack.push(c0.node),
-                    (None, Some(_)) => stack.push(c1.node),
+                    (Some(_), None) => {
+                        prefetch_node(l, &c0.node);
+                        stack.push(c0.node)
+                    }
+                    (None, Some(_)) => {
+                        prefetch_node(l, &c1.node);
+                        stack.push(c1.node)
+                    }
                     (None, None) => {}
                 }
                 continue;
             }
             for c in ch.iter().rev() {
                 if r.slab4(&c.lo, &c.hi, tmin, tmax).is_some() {
+                    prefetch_node(l, &c.node);
                     stack.push(c.node);
                 }
             }
@@ -632,6 +669,7 @@ impl<'a> RayCaster<'a> {
             let before = stack.size();
             for c in &l.children[cs..cs + n.num_children as usize] {
                 if let Some(t) = r.slab4(&c.lo, &c.hi, tmin, best_t) {
+                    prefetch_node(l, &c.node);
                     stack.push(Entry { node: c.node, t });
                 }
             }

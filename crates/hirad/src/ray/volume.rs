@@ -76,7 +76,7 @@ pub struct VolumeCaster<'a> {
     kappa: Vec<f32>,
     /// Padded box per node (for `ℓ_c`).
     padded: Vec<[f32; 6]>,
-    /// Real box per node (for the visit test).
+    /// Box per node for the visit test (grown to contain its contents exactly).
     boxes: Vec<[f32; 6]>,
     /// Size (longest edge of the real box) per node.
     size: Vec<f32>,
@@ -121,6 +121,23 @@ impl<'a> VolumeCaster<'a> {
             }
             area[id] = a;
         }
+        // Visit boxes: the strategy's box grown to contain everything below exactly (as in the
+        // ray caster), so that the exact tests agree with ray casting for any tree.
+        let mut grown: Vec<Aabb> = tree.nodes.iter().map(|x| x.bbox).collect();
+        for id in (0..n).rev() {
+            let mut b = grown[id];
+            for &s in tree.node_surfaces(id as u32) {
+                if (s as usize) < scene.num_triangles() {
+                    b.grow_box(&scene.tri_bbox(s as usize));
+                }
+            }
+            for c in tree.nodes[id].children() {
+                if (c as usize) < n && c as usize > id {
+                    b.grow_box(&grown[c as usize]);
+                }
+            }
+            grown[id] = b;
+        }
         let mut kappa = Vec::with_capacity(n);
         let mut padded = Vec::with_capacity(n);
         let mut boxes = Vec::with_capacity(n);
@@ -143,7 +160,7 @@ impl<'a> VolumeCaster<'a> {
             };
             kappa.push(k);
             padded.push(box6(&pb));
-            boxes.push(box6(&b));
+            boxes.push(box6(&grown[id]));
             size.push(s);
         }
         // Depth-first numbering.

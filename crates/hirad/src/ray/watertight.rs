@@ -18,6 +18,8 @@ pub type TriVerts = [f32; 9];
 pub struct RayPre {
     /// Origin.
     pub o: [f32; 3],
+    /// Direction.
+    pub d: [f32; 3],
     /// Reciprocal direction (±∞ for zero components, sign of the zero kept).
     pub inv: [f32; 3],
     /// Index of the near box plane per axis in `[minx, miny, minz, maxx, maxy, maxz]`.
@@ -85,6 +87,7 @@ impl RayPre {
             inv4: Vec4::new(inv[0], inv[1], inv[2], 1.0),
             finite,
             o: origin.to_array(),
+            d,
             inv,
             near,
             far,
@@ -172,15 +175,36 @@ pub fn intersect(r: &RayPre, tri: &TriVerts, tmin: f32, tmax: f32) -> Option<(f3
     if det == 0.0 {
         return None;
     }
-    let az = r.sz * a[kz];
-    let bz = r.sz * b[kz];
-    let cz = r.sz * c[kz];
-    let t_scaled = u * az + v * bz + w * cz;
-    let rcp = 1.0 / det;
-    let t = t_scaled * rcp;
+    // The edge functions decide whether the ray crosses the triangle (watertight). The hit
+    // distance is then taken from the plane equation in f64, exact up to one final rounding:
+    // the sheared f32 form `T/det` loses most of its digits for slivers and for rays nearly
+    // in the triangle's plane, which would make hits appear outside the segment (and disagree
+    // with the conservative box test of the traversal).
+    let e1 = [
+        tri[3] as f64 - tri[0] as f64,
+        tri[4] as f64 - tri[1] as f64,
+        tri[5] as f64 - tri[2] as f64,
+    ];
+    let e2 = [
+        tri[6] as f64 - tri[0] as f64,
+        tri[7] as f64 - tri[1] as f64,
+        tri[8] as f64 - tri[2] as f64,
+    ];
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let num = n[0] * (tri[0] as f64 - r.o[0] as f64)
+        + n[1] * (tri[1] as f64 - r.o[1] as f64)
+        + n[2] * (tri[2] as f64 - r.o[2] as f64);
+    let den = n[0] * r.d[0] as f64 + n[1] * r.d[1] as f64 + n[2] * r.d[2] as f64;
+    let t = (num / den) as f32;
+    // NaN (0/0, a ray in the plane through the origin) compares false: no hit.
     if !(t >= tmin && t <= tmax) {
         return None;
     }
+    let rcp = 1.0 / det;
     Some((t, v * rcp, w * rcp))
 }
 

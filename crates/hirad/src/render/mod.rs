@@ -13,12 +13,10 @@
 
 pub mod camera;
 pub mod image;
+pub mod pathtrace;
+pub mod raster;
 
 pub use camera::{CameraFrame, CameraOverrides, CameraView};
 pub use image::{Image, ImageFormat};
-pub mod raster;
-
-pub use raster::{rasterize, render_solution, BackFaces, MeshColors, RasterMesh, RasterOptions};
-pub mod pathtrace;
-
 pub use pathtrace::{render_reference, PathTracer, ReferenceOptions, ReferenceStats};
+pub use raster::{rasterize, render_solution, BackFaces, MeshColors, RasterMesh, RasterOptions};

@@ -12,7 +12,8 @@
 //! 3. binning into bands of rows, then each band is rasterised in parallel: integer edge
 //!    functions with a consistent tie rule (an edge shared by two triangles covers each sample
 //!    exactly once: no cracks), samples at the centres of the supersampled pixels, depth test on
-//!    `1/W` (closest wins, ties keep the earlier triangle), colour interpolated
+//!    `1/W` (closest wins, ties keep the earlier triangle; back faces are pushed back by a
+//!    relative 1e-5 so that a coinciding front face always wins), colour interpolated
 //!    perspective-correctly (`Σ bᵢ cᵢ/Wᵢ / Σ bᵢ/Wᵢ`);
 //! 4. the `ss × ss` samples of each pixel are averaged (box filter), uncovered samples count as
 //!    the background.
@@ -395,12 +396,12 @@ impl Setup<'_> {
             c: cols[j],
         });
         if inside {
-            self.emit(&verts, flat, out);
+            self.emit(&verts, flat, back, out);
             return false;
         }
         let poly = self.clip_polygon(&verts);
         for j in 1..poly.len().saturating_sub(1) {
-            self.emit(&[poly[0], poly[j], poly[j + 1]], flat, out);
+            self.emit(&[poly[0], poly[j], poly[j + 1]], flat, back, out);
         }
         true
     }
@@ -443,7 +444,11 @@ impl Setup<'_> {
     }
 
     /// Snap a clipped triangle to the fixed-point grid and push it if it covers a sample.
-    fn emit(&self, v: &[ClipVert; 3], flat: bool, out: &mut Vec<ScreenTri>) {
+    /// Back faces get their depth pushed back by a relative 1e-5, so that a front face
+    /// coinciding with a back face (explicit back-face triangles of two-sided meshes) wins the
+    /// depth test whatever the triangle order.
+    fn emit(&self, v: &[ClipVert; 3], flat: bool, back: bool, out: &mut Vec<ScreenTri>) {
+        let depth_bias = if back { 1.0 - 1e-5 } else { 1.0 };
         let (sw, sh) = (self.sw as f32, self.sh as f32);
         let mut x = [0i32; 3];
         let mut y = [0i32; 3];
@@ -456,8 +461,8 @@ impl Setup<'_> {
             let fy = (1.0 - p.y * inv) * 0.5 * sh;
             x[j] = (fx * SUB).round() as i32;
             y[j] = (fy * SUB).round() as i32;
-            iw[j] = inv;
-            c[j] = if flat { v[j].c } else { v[j].c * inv };
+            iw[j] = inv * depth_bias;
+            c[j] = if flat { v[j].c } else { v[j].c * iw[j] };
         }
         let area = edge(x[0], y[0], x[1], y[1], x[2], y[2]);
         if area == 0 {

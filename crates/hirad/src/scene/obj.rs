@@ -243,6 +243,8 @@ fn lossy(s: &[u8]) -> String {
 /// outside the supported subset; with `allow_fallback` off such statements are skipped (the
 /// diagnostic mode used after `tobj` failed).
 fn parse(path: &Path, bytes: &[u8], allow_fallback: bool) -> Result<Option<RawScene>> {
+    // A UTF-8 byte order mark is not part of the first statement.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut raw = new_raw(path, bytes);
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     // Rough pre-sizing: a typical line is ~30 bytes.
@@ -612,6 +614,21 @@ mod tests {
         );
         let e = load(&p).unwrap_err().to_string();
         assert!(e.contains("b.obj:5:") && e.contains("vertex 9"), "{e}");
+    }
+
+    #[test]
+    fn byte_order_mark_and_crlf() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(
+            d.path(),
+            "bom.obj",
+            "\u{feff}v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 3\r\n",
+        );
+        let raw = parse(&p, &std::fs::read(&p).unwrap(), true)
+            .unwrap()
+            .unwrap();
+        assert_eq!(raw.positions[1], Vec3::X);
+        assert_eq!(raw.triangles, vec![[0, 1, 2]]);
     }
 
     #[test]

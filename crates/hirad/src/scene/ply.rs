@@ -142,7 +142,7 @@ impl<'a> Body<'a> {
                 .map(|p| self.pos + p)
                 .unwrap_or(self.bytes.len());
             let line = &self.bytes[self.pos..end];
-            self.pos = (end + 1).min(self.bytes.len().max(end + 1));
+            self.pos = end + 1;
             self.line += 1;
             self.toks = line
                 .split(|b| b.is_ascii_whitespace())

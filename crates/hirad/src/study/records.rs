@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunMeta {
     pub scene: String,
+    /// Objects (groups) of the scene: 1 for a polygon soup without structure.
+    #[serde(default)]
+    pub scene_objects: usize,
     pub hirad_version: String,
     pub git_commit: String,
     pub threads: usize,
@@ -39,6 +42,7 @@ impl RunMeta {
             .unwrap_or(0.0);
         RunMeta {
             scene: scene.to_string(),
+            scene_objects: 0,
             hirad_version: crate::VERSION.to_string(),
             git_commit: git_commit(),
             threads: rayon::current_num_threads(),

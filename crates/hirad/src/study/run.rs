@@ -294,7 +294,10 @@ impl<'a> Study<'a> {
         let prims = Prims::from_scene(&scene);
         let views = viewpoints(&scene, &cfg)?;
         let store = Store::new(&cfg.out);
-        let meta = RunMeta::current(&cfg.scene);
+        let meta = RunMeta {
+            scene_objects: scene.objects.len(),
+            ..RunMeta::current(&cfg.scene)
+        };
         store.put("config", &cfg)?;
         Ok(Study {
             cfg,

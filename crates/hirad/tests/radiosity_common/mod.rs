@@ -72,7 +72,12 @@ pub fn tree_by_object(scene: &Scene) -> ClusterTree {
         surfaces: vec![],
     });
     b.root = root;
-    let t = ClusterTree::from_build(b, scene.num_triangles(), Strategy::Sah, ClusterConfig::default());
+    let t = ClusterTree::from_build(
+        b,
+        scene.num_triangles(),
+        Strategy::Sah,
+        ClusterConfig::default(),
+    );
     t.validate(&prims).unwrap();
     t
 }
@@ -106,5 +111,8 @@ pub fn group_irradiance(sol: &hirad::radiosity::Solution, scene: &Scene, group: 
 
 /// Path of a real scene file.
 pub fn shared_scene(rel: &str) -> String {
-    format!("{}/../../../shared/scenes/{rel}", env!("CARGO_MANIFEST_DIR"))
+    format!(
+        "{}/../../../shared/scenes/{rel}",
+        env!("CARGO_MANIFEST_DIR")
+    )
 }

@@ -40,11 +40,12 @@ pub fn reference(
     render_reference(scene, &caster, view, opts, &NoProgress).unwrap()
 }
 
-/// Error of a radiosity solution (per-vertex B, drawn as B/π with 2×2 supersampling) against a
+/// Error of a radiosity solution (per-vertex B, drawn as B/π with 4×4 supersampling, close to
+/// the path tracer's box-filtered pixels at the edges of the bright light) against a
 /// path-traced reference image from the same view.
 pub fn solution_error(mesh: &ColoredMesh, view: &CameraView, reference: &Image) -> ImageError {
     let opts = RasterOptions {
-        supersample: 2,
+        supersample: 4,
         ..Default::default()
     };
     let img = render_solution(mesh, view, &opts).unwrap();
