@@ -26,7 +26,13 @@ pub fn load_scene(spec: &str, opts: &SceneOptions) -> anyhow::Result<Scene> {
 }
 
 /// Print a value as pretty JSON on stdout.
+/// A closed pipe (`hirad ... --json | head`) ends the output quietly instead of panicking.
 pub fn print_json<T: serde::Serialize>(v: &T) -> anyhow::Result<()> {
-    println!("{}", serde_json::to_string_pretty(v)?);
-    Ok(())
+    use std::io::Write;
+    let text = serde_json::to_string_pretty(v)?;
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{text}").and_then(|_| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r?),
+    }
 }

@@ -50,7 +50,7 @@ fn verdict(r: Option<bool>) -> &'static str {
     }
 }
 
-fn by<'a, T>(v: &'a [T], s: Strategy, f: impl Fn(&T) -> Strategy) -> Option<&'a T> {
+fn by<T>(v: &[T], s: Strategy, f: impl Fn(&T) -> Strategy) -> Option<&T> {
     v.iter().find(|r| f(r) == s)
 }
 
