@@ -68,8 +68,14 @@ pub struct Args {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Output directory.
-    #[arg(long, default_value = "hirad-solve")]
+    #[arg(long, default_value = "hirad-out/solve")]
     pub out: PathBuf,
+    /// Image of the solution from the scene's default viewpoint (always written into --out as
+    /// image.exr and image.png; --image FILE.png|.exr|DIR writes it there instead).
+    #[command(flatten)]
+    pub image: super::image_args::ImageArgs,
+    #[command(flatten)]
+    pub raster: super::image_args::RasterArgs,
     /// Discontinuous per-element colours instead of vertex averages.
     #[arg(long)]
     pub flat: bool,
@@ -151,8 +157,20 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         v["history"] = serde_json::json!(st.history.len());
         return super::print_json(&v);
     }
-    let files = output::write_outputs(&sol, &scene, &args.out, args.flat)
+    let mut files = output::write_outputs(&sol, &scene, &args.out, args.flat)
         .with_context(|| format!("writing the solution into {}", args.out.display()))?;
+    {
+        let mesh = output::radiosity_mesh(&sol, &scene, args.flat);
+        let view = hirad::render::CameraView::from_camera(&scene.default_camera());
+        let mut ropts = args.raster.options();
+        if cfg.two_sided {
+            // The solution mesh carries explicit back faces.
+            ropts.back_faces = hirad::render::BackFaces::Cull;
+        }
+        let img = hirad::render::render_solution(&mesh, &view, &ropts)?;
+        let written = args.image.write(&img, &args.out, "image")?;
+        files.images = written;
+    }
     if g.json {
         return super::print_json(&serde_json::json!({
             "stats": st,
@@ -208,5 +226,8 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         files.ply.display(),
         files.stats.display()
     );
+    for f in &files.images {
+        println!("wrote {}", f.display());
+    }
     Ok(())
 }

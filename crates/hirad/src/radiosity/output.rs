@@ -67,6 +67,8 @@ pub struct OutputFiles {
     pub glb: PathBuf,
     pub ply: PathBuf,
     pub stats: PathBuf,
+    /// Images of the solution written by the caller (renderer), if any.
+    pub images: Vec<PathBuf>,
 }
 
 /// Write `solution.glb`, `solution.ply` and `stats.json` into `dir`, atomically.
@@ -76,6 +78,7 @@ pub fn write_outputs(sol: &Solution, scene: &Scene, dir: &Path, flat: bool) -> R
         glb: dir.join("solution.glb"),
         ply: dir.join("solution.ply"),
         stats: dir.join("stats.json"),
+        images: Vec::new(),
     };
     write_colored_mesh(&files.glb, &mesh)?;
     write_colored_mesh(&files.ply, &mesh)?;

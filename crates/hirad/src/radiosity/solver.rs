@@ -683,15 +683,13 @@ impl<'a> Solver<'a> {
                     if c > 0.0 {
                         let mut pts = Vec::new();
                         super::formfactor::stratified_2d(n_sun, &mut rng, &mut pts);
-                        let mut open = 0;
+                        let mut open = 0.0;
                         for p in &pts {
                             let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
                             rays += 1;
-                            if !vis.blocked_to_infinity(x, sun.direction, tmin) {
-                                open += 1;
-                            }
+                            open += vis.open_to_infinity(x, sun.direction, tmin, e.tri);
                         }
-                        h += sun.irradiance.as_dvec3() * (c as f64 * open as f64 / n_sun as f64);
+                        h += sun.irradiance.as_dvec3() * (c as f64 * open / n_sun as f64);
                     }
                 }
                 if let Some(sky) = scene.sky {
@@ -700,7 +698,7 @@ impl<'a> Solver<'a> {
                     let mut pts = Vec::new();
                     super::formfactor::stratified_2d(n_sky, &mut rng, &mut pts);
                     let (t, b) = n.any_orthonormal_pair();
-                    let mut open = 0;
+                    let mut open = 0.0;
                     for (d, p) in dirs.iter().zip(&pts) {
                         // Cosine-weighted direction about n.
                         let r = d[0].sqrt();
@@ -714,11 +712,9 @@ impl<'a> Solver<'a> {
                         }
                         let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
                         rays += 1;
-                        if !vis.blocked_to_infinity(x, w, tmin) {
-                            open += 1;
-                        }
+                        open += vis.open_to_infinity(x, w, tmin, e.tri);
                     }
-                    h += sky.as_dvec3() * (std::f64::consts::PI * open as f64 / n_sky as f64);
+                    h += sky.as_dvec3() * (std::f64::consts::PI * open / n_sky as f64);
                 }
                 (h, rays)
             })

@@ -72,12 +72,33 @@ impl<'a> Visibility<'a> {
         }
     }
 
-    /// True when the ray towards a distant light (sun, sky) is blocked.
+    /// Fraction of a distant light (sun, sky direction `dir`, unit length) reaching `origin` on
+    /// surface `tri`: 0 or 1 with rays; with volumes, the transmittance of the segment from
+    /// `origin` to where it leaves the scene (twice the scene's diagonal away), the surface
+    /// itself excluded — so that sun shadows, too, are volumetric (paper Fig. 5).
     #[inline]
-    pub fn blocked_to_infinity(&self, origin: Vec3, dir: Vec3, tmin: f32) -> bool {
-        match self.mode {
-            VisibilityMode::None => false,
-            _ => self.caster.occluded(origin, dir, tmin, f32::MAX),
+    pub fn open_to_infinity(&self, origin: Vec3, dir: Vec3, tmin: f32, tri: u32) -> f64 {
+        match (self.mode, &self.volume) {
+            (VisibilityMode::None, _) => 1.0,
+            (VisibilityMode::Volume, Some(v)) => {
+                let root = v.tree.nodes.first().map(|n| n.bbox.size()).unwrap_or(0.0);
+                let far = origin + dir * (2.0 * root * 3f32.sqrt() + 1.0);
+                let start = origin + dir * tmin;
+                v.transmittance(
+                    start,
+                    far,
+                    self.vol_ratio,
+                    Endpoint::Surface(tri),
+                    Endpoint::None,
+                ) as f64
+            }
+            _ => {
+                if self.caster.occluded(origin, dir, tmin, f32::MAX) {
+                    0.0
+                } else {
+                    1.0
+                }
+            }
         }
     }
 }
