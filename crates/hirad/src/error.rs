@@ -57,7 +57,10 @@ impl Error {
 
     /// True for errors caused by the user's input files or arguments (CLI exit code 2).
     pub fn is_input(&self) -> bool {
-        matches!(self, Error::Io { .. } | Error::Input { .. } | Error::Config(_))
+        matches!(
+            self,
+            Error::Io { .. } | Error::Input { .. } | Error::Config(_)
+        )
     }
 }
 

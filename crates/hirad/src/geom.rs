@@ -136,7 +136,12 @@ impl Aabb {
         if b.is_empty() {
             return true;
         }
-        let scale = self.min.abs().max(self.max.abs()).max_element().max(self.size());
+        let scale = self
+            .min
+            .abs()
+            .max(self.max.abs())
+            .max_element()
+            .max(self.size());
         let slack = rel * scale + f32::MIN_POSITIVE;
         (b.min + Vec3::splat(slack)).cmpge(self.min).all()
             && (b.max - Vec3::splat(slack)).cmple(self.max).all()

@@ -112,11 +112,13 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         scene: scene.to_string(),
         strategies: Strategy::parse_list(&a.clustering)?,
         solver,
-        tolerances: a.tolerances.unwrap_or(if visibility == VisibilityMode::Volume {
-            0
-        } else {
-            8
-        }),
+        tolerances: a
+            .tolerances
+            .unwrap_or(if visibility == VisibilityMode::Volume {
+                0
+            } else {
+                8
+            }),
         eps_list: a.eps_list.clone(),
         eps_hi: a.eps_hi.unwrap_or(0.2),
         eps_lo: a.eps_lo.unwrap_or(0.002),

@@ -849,27 +849,17 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
 }
 
 fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Result<()> {
-    let mut stack = vec![from.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        let Ok(rd) = std::fs::read_dir(&d) else {
+    for p in super::store::walk_files(from, &["plots"]) {
+        if !p.extension().is_some_and(|x| exts.iter().any(|e| x == *e)) {
+            continue;
+        }
+        let Ok(r) = p.strip_prefix(from) else {
             continue;
         };
-        for e in rd.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                if p.file_name().is_some_and(|n| n != "plots") {
-                    stack.push(p);
-                }
-            } else if p.extension().is_some_and(|x| exts.iter().any(|e| x == *e)) {
-                let Ok(r) = p.strip_prefix(from) else {
-                    continue;
-                };
-                let dst = to.join(r);
-                if !dst.exists() {
-                    let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
-                    crate::io::write_bytes_atomic(&dst, &bytes)?;
-                }
-            }
+        let dst = to.join(r);
+        if !dst.exists() {
+            let bytes = std::fs::read(&p).map_err(|e| Error::io(&p, e))?;
+            crate::io::write_bytes_atomic(&dst, &bytes)?;
         }
     }
     Ok(())

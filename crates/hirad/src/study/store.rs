@@ -106,28 +106,47 @@ impl Store {
 
     /// Every stored key under `prefix` (a directory key), sorted.
     pub fn keys(&self, prefix: &str) -> Vec<String> {
-        let base = self.dir_of(prefix);
-        let mut out = Vec::new();
-        let mut stack = vec![base.clone()];
-        while let Some(d) = stack.pop() {
-            let Ok(rd) = std::fs::read_dir(&d) else {
-                continue;
-            };
-            for e in rd.flatten() {
-                let p = e.path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if let Ok(rel) = p.strip_prefix(&self.dir) {
-                    let rel = rel.to_string_lossy().replace('\\', "/");
-                    if let Some(k) = rel.strip_suffix(".json") {
-                        out.push(k.to_string());
-                    }
-                }
-            }
-        }
+        let mut out: Vec<String> = walk_files(&self.dir_of(prefix), &[])
+            .into_iter()
+            .filter_map(|p| {
+                let rel = p
+                    .strip_prefix(&self.dir)
+                    .ok()?
+                    .to_string_lossy()
+                    .replace('\\', "/");
+                rel.strip_suffix(".json").map(str::to_string)
+            })
+            .collect();
         out.sort();
         out
     }
+}
+
+/// Every file below `dir` (recursively, sorted), not descending into directories named in
+/// `skip_dirs`.
+pub fn walk_files(dir: &Path, skip_dirs: &[&str]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(rd) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        for e in rd.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                if !p
+                    .file_name()
+                    .is_some_and(|n| skip_dirs.iter().any(|s| n == *s))
+                {
+                    stack.push(p);
+                }
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
 }
 
 #[cfg(test)]
