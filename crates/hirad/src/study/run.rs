@@ -266,6 +266,18 @@ pub struct Study<'a> {
     cancel: &'a AtomicBool,
 }
 
+/// PNG exposure (stops) that maps the image's white (99th-percentile luminance, as the CIELUV
+/// metric takes it) to 1, so that indoor scenes and sunlit ones are both readable. Errors are
+/// always computed on the linear images, never on the PNGs.
+pub fn auto_exposure(img: &Image) -> f32 {
+    let yn = crate::metrics::white_luminance(img);
+    if yn.is_finite() && yn > 0.0 {
+        (-yn.log2()).clamp(-30.0, 30.0) as f32
+    } else {
+        0.0
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     if v.is_empty() {
@@ -500,7 +512,7 @@ impl<'a> Study<'a> {
         let seconds = t.elapsed().as_secs_f64();
         let path = self.reference_path(name);
         img.write_exr(&path)?;
-        img.write_png(&path.with_extension("png"), 0.0)?;
+        img.write_png(&path.with_extension("png"), auto_exposure(&img))?;
         Ok(ReferenceRecord {
             meta: self.meta.clone(),
             viewpoint: name.to_string(),
@@ -520,7 +532,7 @@ impl<'a> Study<'a> {
         for (name, view) in &self.views {
             let img = render::render_solution(&mesh, view, &opts)?;
             let rel = format!("{dir}/{name}.png");
-            img.write_png(&self.cfg.out.join(&rel), 0.0)?;
+            img.write_png(&self.cfg.out.join(&rel), auto_exposure(&img))?;
             out.push((rel, img));
         }
         Ok(out)
