@@ -67,6 +67,10 @@ pub struct Args {
     /// Seed of the random choices.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Volume visibility: a cluster smaller than this × the segment length is used as a
+    /// volume (default 0.1, > 0); smaller is more precise and slower.
+    #[arg(long)]
+    pub vol_ratio: Option<f32>,
     /// Output directory.
     #[arg(long, default_value = "hirad-out/solve")]
     pub out: PathBuf,
@@ -123,6 +127,9 @@ impl Args {
         }
         if let Some(s) = self.seed {
             c.seed = s;
+        }
+        if let Some(v) = self.vol_ratio {
+            c.vol_ratio = v;
         }
         c.validate()?;
         Ok(c)

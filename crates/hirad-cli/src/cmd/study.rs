@@ -40,6 +40,9 @@ pub struct Args {
     /// volumetric against exact visibility per strategy).
     #[arg(long, default_value = "rays")]
     pub visibility: String,
+    /// Volume visibility: clusters smaller than this × the segment length act as volumes.
+    #[arg(long, default_value_t = 0.1)]
+    pub vol_ratio: f32,
     /// Viewpoints by camera name, comma-separated (default: every camera of the scene).
     #[arg(long, value_delimiter = ',')]
     pub viewpoints: Vec<String>,
@@ -106,6 +109,7 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         refine: Oracle::parse(&a.refine)?,
         visibility: VisibilityMode::Rays,
         two_sided: a.two_sided,
+        vol_ratio: a.vol_ratio,
         ..SolverConfig::default()
     };
     Ok(StudyConfig {
