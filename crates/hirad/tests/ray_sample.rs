@@ -5,7 +5,6 @@ use glam::{DVec3, Vec3};
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::ray::sample::{sample_pairs, sample_segments, SurfaceSampler};
 use hirad::ray::{RayCaster, Segment};
-use hirad::rng::SplitMix64;
 use hirad::scene::{Material, RawScene, Scene, SceneOptions};
 
 /// T0 = (0,0,0),(1,0,0),(0,1,0) and T1 = (0,0,1),(2,0,1),(0,2,1).
@@ -27,24 +26,6 @@ fn spec_scene() -> Scene {
         ..Default::default()
     };
     Scene::from_raw(raw, &SceneOptions::default()).unwrap()
-}
-
-#[test]
-fn splitmix_spec_vector() {
-    let mut g = SplitMix64::new(1);
-    assert_eq!(g.next_u64(), 0x910a_2dec_8902_5cc1);
-    let mut g = SplitMix64::new(1);
-    let want = [
-        0.5665615751722809,
-        0.7457817572627011,
-        0.9710027535867962,
-        0.4443592170557721,
-        0.44426470082635805,
-        0.762894391911761,
-    ];
-    for w in want {
-        assert_eq!(g.next_f64(), w);
-    }
 }
 
 #[test]

@@ -174,6 +174,22 @@ fn is_space(b: u8) -> bool {
 }
 
 #[inline]
+/// The non-empty lines of an OBJ or MTL file with their 1-based numbers, comments (`#` to the
+/// end of the line) removed and surrounding white space trimmed.
+fn content_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &[u8])> {
+    bytes
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .filter_map(|(li, line)| {
+            let line = match line.iter().position(|&b| b == b'#') {
+                Some(h) => &line[..h],
+                None => line,
+            };
+            let line = trim(line);
+            (!line.is_empty()).then_some((li + 1, line))
+        })
+}
+
 fn trim(mut s: &[u8]) -> &[u8] {
     while let [first, rest @ ..] = s {
         if is_space(*first) {
@@ -264,16 +280,7 @@ fn parse(path: &Path, bytes: &[u8], allow_fallback: bool) -> Result<Option<RawSc
     let mut forward: Option<(u64, usize)> = None;
     let mut corners: Vec<u32> = Vec::with_capacity(8);
 
-    for (li, line) in bytes.split(|&b| b == b'\n').enumerate() {
-        let line_no = li + 1;
-        let mut line = line;
-        if let Some(h) = line.iter().position(|&b| b == b'#') {
-            line = &line[..h];
-        }
-        let line = trim(line);
-        if line.is_empty() {
-            continue;
-        }
+    for (line_no, line) in content_lines(bytes) {
         if line.last() == Some(&b'\\') {
             if allow_fallback {
                 return Ok(None);
@@ -489,16 +496,7 @@ fn intern_object(objects: &mut Vec<String>, ids: &mut HashMap<Vec<u8>, u32>, nam
 pub fn parse_mtl(path: &Path) -> Result<Vec<Material>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let mut out: Vec<Material> = Vec::new();
-    for (li, line) in bytes.split(|&b| b == b'\n').enumerate() {
-        let line_no = li + 1;
-        let mut line = line;
-        if let Some(h) = line.iter().position(|&b| b == b'#') {
-            line = &line[..h];
-        }
-        let line = trim(line);
-        if line.is_empty() {
-            continue;
-        }
+    for (line_no, line) in content_lines(&bytes) {
         let split = line.iter().position(|&b| is_space(b)).unwrap_or(line.len());
         let (kw, rest) = (&line[..split], trim(&line[split..]));
         match kw {

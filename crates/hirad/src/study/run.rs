@@ -338,6 +338,7 @@ impl<'a> Study<'a> {
                 .unwrap_or(Strategy::OkdtP)
         };
         self.progress.message("calibrating ε");
+        let tree = self.tree(strategy);
         let mut probes = Vec::new();
         let mut spent = 0.0;
         for k in 0..20 {
@@ -348,7 +349,7 @@ impl<'a> Study<'a> {
                 eps: None,
                 ..self.cfg.solver.clone()
             };
-            let (sol, secs) = self.solve_with(strategy, &solver)?;
+            let (sol, secs) = self.solve_with(&tree, &solver)?;
             let pct = sol.stats.cluster_energy_percent;
             tracing::info!("calibration ε={e:.3e}: {pct:.1}% through clusters, {secs:.2} s");
             probes.push((e, pct, secs));
@@ -538,11 +539,16 @@ impl<'a> Study<'a> {
         Ok(out)
     }
 
-    fn solve_with(&self, s: Strategy, solver: &SolverConfig) -> Result<(radiosity::Solution, f64)> {
-        let tree = self.tree(s);
+    /// Solve with `tree` (built once by the caller, so repeated solves of one strategy share
+    /// it); the time is the solve's alone, as in the paper.
+    fn solve_with(
+        &self,
+        tree: &ClusterTree,
+        solver: &SolverConfig,
+    ) -> Result<(radiosity::Solution, f64)> {
         let t = Instant::now();
         let sol =
-            radiosity::solve_cancellable(&self.scene, &tree, solver, self.progress, self.cancel)?;
+            radiosity::solve_cancellable(&self.scene, tree, solver, self.progress, self.cancel)?;
         Ok((sol, t.elapsed().as_secs_f64()))
     }
 
@@ -552,7 +558,7 @@ impl<'a> Study<'a> {
             eps: None,
             ..self.cfg.solver.clone()
         };
-        let (sol, solve_s) = self.solve_with(s, &solver)?;
+        let (sol, solve_s) = self.solve_with(&self.tree(s), &solver)?;
         let dir = format!("solve/{s}/{}", eps_key(eps_rel));
         let imgs = self.render_views(&sol, &dir)?;
         let mut errors = Vec::new();
@@ -590,9 +596,10 @@ impl<'a> Study<'a> {
             visibility: VisibilityMode::Volume,
             ..self.cfg.solver.clone()
         };
-        let (exact, exact_s) = self.solve_with(s, &exact_cfg)?;
+        let tree = self.tree(s);
+        let (exact, exact_s) = self.solve_with(&tree, &exact_cfg)?;
         let exact_imgs = self.render_views(&exact, &format!("volume/{s}/exact"))?;
-        let (vol, volume_s) = self.solve_with(s, &vol_cfg)?;
+        let (vol, volume_s) = self.solve_with(&tree, &vol_cfg)?;
         let vol_imgs = self.render_views(&vol, &format!("volume/{s}/volume"))?;
         let mut err = 0.0;
         for ((_, a), (_, b)) in vol_imgs.iter().zip(&exact_imgs) {
@@ -739,65 +746,40 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
         files.extend(f3);
     }
     // CSV tables.
-    let mut csv = String::from("scene,strategy,refine,visibility,eps_rel,solve_s,elements,links,cluster_energy_pct,rms_delta_e\n");
-    for r in &d.solves {
-        csv.push_str(&format!(
-            "{},{},{},{},{:e},{:.6},{},{},{:.3},{:.6}\n",
-            d.meta.scene,
-            r.strategy,
-            r.refine,
-            r.visibility,
-            r.eps,
-            r.solve_s,
-            r.elements,
-            r.links,
-            r.cluster_energy_pct,
-            r.error()
-        ));
-    }
-    let p = out.join("sweep.csv");
-    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
-    files.push(p);
-    let mut csv = String::from("scene,strategy,clusters,depth_max,depth_mean,avg_surfaces,avg_children,branching,overlap,empty_space,tree_bytes,build_ms\n");
-    for r in &d.clusters {
-        csv.push_str(&format!(
-            "{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{},{:.4}\n",
-            d.meta.scene,
-            r.strategy,
-            r.clusters,
-            r.depth_max,
-            r.depth_mean,
-            r.avg_surfaces,
-            r.avg_children,
-            r.branching,
-            r.overlap,
-            r.empty_space,
-            r.tree_bytes,
-            r.build_ms
-        ));
-    }
-    let p = out.join("clusters.csv");
-    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
-    files.push(p);
-    let mut csv = String::from("scene,strategy,pairs,seed,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray\n");
-    for r in &d.rays {
-        csv.push_str(&format!(
-            "{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}\n",
-            d.meta.scene,
-            r.strategy,
-            r.pairs,
-            r.seed,
-            r.build_ms,
-            r.query_ms,
-            r.mrays_per_s,
-            r.occluded,
-            r.nodes_per_ray,
-            r.tris_per_ray
-        ));
-    }
-    let p = out.join("raybench.csv");
-    crate::io::write_bytes_atomic(&p, csv.as_bytes())?;
-    files.push(p);
+    let scene = &d.meta.scene;
+    files.push(write_csv(
+        &out.join("sweep.csv"),
+        "scene,strategy,refine,visibility,eps_rel,solve_s,elements,links,cluster_energy_pct,rms_delta_e",
+        d.solves.iter().map(|r| {
+            format!(
+                "{scene},{},{},{},{:e},{:.6},{},{},{:.3},{:.6}",
+                r.strategy, r.refine, r.visibility, r.eps, r.solve_s, r.elements, r.links,
+                r.cluster_energy_pct, r.error()
+            )
+        }),
+    )?);
+    files.push(write_csv(
+        &out.join("clusters.csv"),
+        "scene,strategy,clusters,depth_max,depth_mean,avg_surfaces,avg_children,branching,overlap,empty_space,tree_bytes,build_ms",
+        d.clusters.iter().map(|r| {
+            format!(
+                "{scene},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.6},{:.6},{},{:.4}",
+                r.strategy, r.clusters, r.depth_max, r.depth_mean, r.avg_surfaces,
+                r.avg_children, r.branching, r.overlap, r.empty_space, r.tree_bytes, r.build_ms
+            )
+        }),
+    )?);
+    files.push(write_csv(
+        &out.join("raybench.csv"),
+        "scene,strategy,pairs,seed,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray",
+        d.rays.iter().map(|r| {
+            format!(
+                "{scene},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}",
+                r.strategy, r.pairs, r.seed, r.build_ms, r.query_ms, r.mrays_per_s, r.occluded,
+                r.nodes_per_ray, r.tris_per_ray
+            )
+        }),
+    )?);
     let md = report::markdown(d);
     let p = out.join("report.md");
     crate::io::write_bytes_atomic(&p, md.as_bytes())?;
@@ -819,6 +801,21 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     )?;
     files.push(p);
     Ok(files)
+}
+
+/// Write a CSV file atomically: the header line, then one line per row.
+fn write_csv(
+    path: &std::path::Path,
+    header: &str,
+    rows: impl Iterator<Item = String>,
+) -> Result<PathBuf> {
+    let mut csv = format!("{header}\n");
+    for r in rows {
+        csv.push_str(&r);
+        csv.push('\n');
+    }
+    crate::io::write_bytes_atomic(path, csv.as_bytes())?;
+    Ok(path.to_path_buf())
 }
 
 fn rel(base: &std::path::Path, files: &[PathBuf]) -> Vec<String> {
