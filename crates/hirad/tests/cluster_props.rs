@@ -349,7 +349,7 @@ fn check_all(tris: &[[Vec3; 3]], lambda: f32) -> Result<(), TestCaseError> {
                 for n in &t.nodes {
                     if n.num_children > 0 {
                         prop_assert_eq!(n.num_surfaces, 0);
-                        prop_assert_eq!(n.num_children, 2);
+                        prop_assert!((2..=cfg.sah_width as u32).contains(&n.num_children));
                     } else {
                         prop_assert!(n.num_surfaces as usize <= cfg.sah_leaf_size);
                     }
@@ -454,14 +454,45 @@ fn depth_limits() {
         let d = t.nodes.iter().map(|n| n.depth).max().unwrap();
         assert!(d as usize <= cfg.max_depth + 9, "{s}: depth {d}");
     }
-    let sah = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg);
-    assert!(sah.nodes.iter().all(|n| n.num_surfaces <= 4));
-    // SAH alone needs 27 levels here; with max_depth 16 the median splits from depth 8 on
-    // bound it by 8 + ⌈log2 400⌉.
+    // The binary SAH tree (width 2) alone needs 27 levels here; with max_depth 16 the median
+    // splits from depth 8 on bound it by 8 + ⌈log2 400⌉. The default 4-wide collapse of the
+    // same tree keeps its leaves and removes inner levels (regression golden below).
+    let binary = ClusterConfig {
+        sah_width: 2,
+        ..Default::default()
+    };
     let d = |t: &ClusterTree| t.nodes.iter().map(|n| n.depth).max().unwrap();
-    assert_eq!(d(&sah), 27);
+    let sah2 = ClusterTree::build_prims(&prims, Strategy::Sah, &binary);
+    assert!(sah2.nodes.iter().all(|n| n.num_surfaces <= 4));
+    assert!(sah2
+        .nodes
+        .iter()
+        .all(|n| n.num_children == 0 || n.num_children == 2));
+    assert_eq!(d(&sah2), 27);
+    let sah = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg);
+    assert!(sah
+        .nodes
+        .iter()
+        .all(|n| n.num_surfaces <= 4 && n.num_children <= 4));
+    // Collapsing keeps the leaves (same surface groups) and removes only inner nodes.
+    let leaves = |t: &ClusterTree| {
+        let mut v: Vec<Vec<u32>> = (0..t.nodes.len() as u32)
+            .filter(|&i| t.nodes[i as usize].num_children == 0)
+            .map(|i| {
+                let mut s = t.node_surfaces(i).to_vec();
+                s.sort_unstable();
+                s
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(leaves(&sah), leaves(&sah2));
+    assert!(sah.nodes.len() < sah2.nodes.len());
+    assert_eq!(d(&sah), 21, "4-wide depth");
     let cfg16 = ClusterConfig {
         max_depth: 16,
+        sah_width: 2,
         ..Default::default()
     };
     let sah16 = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg16);
@@ -552,7 +583,7 @@ fn graz_office_trees_are_valid() {
             Strategy::Obt => Some((6296, 31, 429, 11.995)),
             Strategy::Okdt => Some((3945, 24, 429, 9.537)),
             Strategy::TfOct => Some((8440, 11, 184, 245.337)),
-            Strategy::Sah => Some((17821, 27, 4, 810.986)),
+            Strategy::Sah => Some((13109, 13, 4, 620.810)),
             _ => None,
         };
         if let Some((clusters, depth, smax, overlap)) = golden {

@@ -1,7 +1,11 @@
 //! Strategy `sah`: a binned surface-area-heuristic BVH, the ray-tracing baseline of
 //! `spec/clustering.md` (paper §3.2.2 discusses the trade-off).
 //!
-//! Binary tree of tight boxes with surfaces only at the leaves. A node holding more than
+//! Tree of tight boxes with surfaces only at the leaves. The binned build below makes a
+//! binary tree; it is then collapsed to at most `sah_width` children per node (default 4, the
+//! wide BVH of ray tracers such as Embree's BVH4): starting from the binary children, the
+//! inner child of largest surface area is repeatedly replaced by its own children while the
+//! count stays within the width (ties: lowest position). A node holding more than
 //! `sah_leaf_size` surfaces is always split: the centroids are binned into [`BINS`] equal bins
 //! along each axis of the centroid bounds, and the plane between bins minimising
 //! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
@@ -25,7 +29,43 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     };
     let mut items = topdown::items(prims);
     let (out, root) = node_par(&p, &mut items, 0);
-    out.into_build(root, cfg.max_depth).0
+    let mut tree = out.into_build(root, cfg.max_depth).0;
+    collapse(&mut tree, cfg.sah_width.max(2));
+    tree
+}
+
+/// Collapse the binary tree to at most `width` children per node (module docs). Nodes that
+/// are pulled up become unreachable and are dropped by
+/// [`ClusterTree::from_build`](super::ClusterTree::from_build).
+pub fn collapse(tree: &mut BuildTree, width: usize) {
+    if tree.nodes.is_empty() || width <= 2 {
+        return;
+    }
+    let mut stack = vec![tree.root];
+    while let Some(id) = stack.pop() {
+        let mut kids = std::mem::take(&mut tree.nodes[id as usize].children);
+        loop {
+            let mut pick: Option<(usize, f32)> = None;
+            for (i, &c) in kids.iter().enumerate() {
+                let n = &tree.nodes[c as usize];
+                if n.children.is_empty() || kids.len() - 1 + n.children.len() > width {
+                    continue;
+                }
+                let a = n.bbox.surface_area();
+                if pick.is_none_or(|(_, b)| a > b) {
+                    pick = Some((i, a));
+                }
+            }
+            let Some((i, _)) = pick else { break };
+            let c = kids.remove(i);
+            let grand = tree.nodes[c as usize].children.clone();
+            for (k, g) in grand.into_iter().enumerate() {
+                kids.insert(i + k, g);
+            }
+        }
+        stack.extend(kids.iter().rev().copied());
+        tree.nodes[id as usize].children = kids;
+    }
 }
 
 /// Parameters of the build.

@@ -26,18 +26,19 @@
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
 //! through the same tree.
 
+mod layout;
 pub mod sample;
 pub mod volume;
 pub mod watertight;
 
 use crate::cluster::ClusterTree;
-use crate::geom::Aabb;
 use crate::scene::Scene;
 use glam::Vec3;
+use layout::{Layout, Ray4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::mem::MaybeUninit;
-use watertight::{intersect, RayPre, TriVerts};
+use watertight::{intersect, RayPre};
 
 /// A ray hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,166 +118,6 @@ impl RayStats {
     }
 }
 
-/// What the traversal needs to visit a node: where its child entries and its triangles are.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[repr(C)]
-struct NodeRef {
-    /// First entry of the node's children in [`Layout::children`].
-    first_child: u32,
-    num_children: u32,
-    /// First of the node's triangles in [`Layout::tris`].
-    tri_start: u32,
-    num_tris: u32,
-}
-
-/// A child entry, stored in its parent's contiguous block: the child's box and how to visit
-/// it (48 bytes), so that visiting a node reads one block of children and one run of
-/// triangles.
-#[derive(Clone, Copy, Debug, Default)]
-#[repr(C, align(16))]
-struct Child {
-    /// `[minx, miny, minz, −∞]`.
-    lo: [f32; 4],
-    /// `[maxx, maxy, maxz, +∞]`.
-    hi: [f32; 4],
-    node: NodeRef,
-}
-
-impl Child {
-    fn new(b: &Aabb, node: NodeRef) -> Child {
-        Child {
-            lo: [b.min.x, b.min.y, b.min.z, f32::NEG_INFINITY],
-            hi: [b.max.x, b.max.y, b.max.z, f32::INFINITY],
-            node,
-        }
-    }
-}
-
-/// Traversal layout of a cluster tree: nodes in depth-first pre-order (children in tree
-/// order); the children blocks and triangle runs of the nodes are stored in that order.
-#[derive(Clone, Debug, Default)]
-struct Layout {
-    /// The root as a child entry (its box is tested first); `None` for a tree without nodes.
-    root: Option<Child>,
-    children: Vec<Child>,
-    /// Triangle corners in node order.
-    tris: Vec<TriVerts>,
-    /// Scene triangle id of each entry of `tris`.
-    tri_id: Vec<u32>,
-    /// Pre-order position → tree node id.
-    tree_id: Vec<u32>,
-}
-
-impl Layout {
-    fn new(scene: &Scene, tree: &ClusterTree) -> Layout {
-        let n = tree.nodes.len();
-        if n == 0 {
-            return Layout::default();
-        }
-        let nt = scene.num_triangles() as u32;
-        // Children of a node that the layout follows: valid ids greater than the parent's
-        // (true of every laid-out tree; guarantees termination on malformed input).
-        let kids = |id: u32| {
-            tree.nodes[id as usize]
-                .children()
-                .filter(move |&c| (c as usize) < n && c > id)
-        };
-        let surfs = |id: u32| {
-            let node = &tree.nodes[id as usize];
-            let end =
-                (node.first_surface as usize + node.num_surfaces as usize).min(tree.surfaces.len());
-            let start = (node.first_surface as usize).min(end);
-            tree.surfaces[start..end]
-                .iter()
-                .copied()
-                .filter(|&s| s < nt)
-        };
-        // Depth-first pre-order.
-        let mut order = Vec::with_capacity(n);
-        let mut seen = vec![false; n];
-        let mut stack = vec![0u32];
-        while let Some(id) = stack.pop() {
-            if std::mem::replace(&mut seen[id as usize], true) {
-                continue;
-            }
-            order.push(id);
-            let mut k: Vec<u32> = kids(id).collect();
-            k.reverse();
-            stack.extend(k);
-        }
-        // Pass 1: where each node's children block and triangle run start.
-        let mut refs = vec![NodeRef::default(); n];
-        let (mut nc, mut ntri) = (0u32, 0u32);
-        for &id in &order {
-            let c = kids(id).count() as u32;
-            let t = surfs(id).count() as u32;
-            refs[id as usize] = NodeRef {
-                first_child: nc,
-                num_children: c,
-                tri_start: ntri,
-                num_tris: t,
-            };
-            nc += c;
-            ntri += t;
-        }
-        // Boxes: the strategy's box, grown to contain everything below exactly (strategies
-        // may leave an f32 slack that `validate` tolerates; a ray grazing such a triangle must
-        // still reach it, so that the result equals brute force for any tree).
-        let mut bound = vec![Aabb::EMPTY; n];
-        for &id in order.iter().rev() {
-            let mut b = tree.nodes[id as usize].bbox;
-            for s in surfs(id) {
-                b.grow_box(&scene.tri_bbox(s as usize));
-            }
-            for c in kids(id) {
-                let cb = bound[c as usize];
-                b.grow_box(&cb);
-            }
-            bound[id as usize] = b;
-        }
-        // Pass 2: fill them in.
-        let mut children = Vec::with_capacity(nc as usize);
-        let mut tris = Vec::with_capacity(ntri as usize);
-        let mut tri_id = Vec::with_capacity(ntri as usize);
-        for &id in &order {
-            for c in kids(id) {
-                children.push(Child::new(&bound[c as usize], refs[c as usize]));
-            }
-            for s in surfs(id) {
-                let [a, b, c] = scene.tri_vertices(s as usize);
-                tris.push([a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]);
-                tri_id.push(s);
-            }
-        }
-        Layout {
-            root: Some(Child::new(&bound[0], refs[0])),
-            children,
-            tris,
-            tri_id,
-            tree_id: order,
-        }
-    }
-}
-
-/// Hint the cache to load what visiting `n` reads first (its children block and triangles).
-#[inline(always)]
-fn prefetch_node(l: &Layout, n: &NodeRef) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let c = l.children.as_ptr().wrapping_add(n.first_child as usize) as *const i8;
-        let t = l.tris.as_ptr().wrapping_add(n.tri_start as usize) as *const i8;
-        // SAFETY: a prefetch is only a hint and never faults, whatever the address.
-        #[allow(unused_unsafe)]
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(c);
-            _mm_prefetch::<_MM_HINT_T0>(t);
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (l, n);
-}
-
 /// Traversal stack kept in a fixed array on the machine stack (not initialised), spilling to
 /// the heap only for very deep or very wide trees.
 pub(crate) struct Stack<T: Copy, const N: usize> {
@@ -353,10 +194,89 @@ impl<T: Copy, const N: usize> Stack<T, N> {
     }
 }
 
-/// Entry of the closest-hit stack: node and entry distance of its box.
+/// Segments per parallel work item of the batch queries.
+const BATCH_CHUNK: usize = 256;
+/// Rays in flight in [`RayCaster::occluded_stream`].
+pub const STREAM: usize = 8;
+/// Stack depth of a ray in flight (deeper queries are redone by the single-ray traversal).
+const LANE_STACK: usize = 62;
+
+/// What one step of a ray in flight decided.
+enum Step {
+    Continue,
+    Hit,
+    Miss,
+    Overflow,
+}
+
+/// A ray in flight of [`RayCaster::occluded_stream`].
+#[derive(Clone, Copy)]
+struct Lane {
+    r: RayPre,
+    r4: Ray4,
+    tmin: f32,
+    tmax: f32,
+    seg: u32,
+    len: u32,
+    /// A query is in flight.
+    busy: bool,
+    stack: [u32; LANE_STACK],
+}
+
+impl Lane {
+    /// Visit the next node of this ray (the same work as one iteration of
+    /// `occluded_impl`).
+    #[inline(always)]
+    fn step(&mut self, l: &Layout) -> Step {
+        if self.len == 0 {
+            return Step::Miss;
+        }
+        self.len -= 1;
+        let n = self.stack[self.len as usize];
+        let (ts, nt, g0, ng) = l.node(n);
+        if nt > 0 && l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
+            return Step::Hit;
+        }
+        for g in &l.groups[g0..g0 + ng] {
+            let (mask, tn) = self.r4.test(g, self.tmin, self.tmax);
+            if self.len as usize + mask.count_ones() as usize > LANE_STACK {
+                return Step::Overflow;
+            }
+            let mut stack = LaneStack(self);
+            push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+        }
+        Step::Continue
+    }
+}
+
+/// The stack of a [`Lane`] as a push target of [`push_sorted`].
+struct LaneStack<'a>(&'a mut Lane);
+
+impl PushStack<u32> for LaneStack<'_> {
+    #[inline(always)]
+    fn push(&mut self, x: u32) {
+        let l = &mut *self.0;
+        l.stack[l.len as usize] = x;
+        l.len += 1;
+    }
+}
+
+/// Where [`push_sorted`] pushes.
+trait PushStack<T> {
+    fn push(&mut self, x: T);
+}
+
+impl<T: Copy, const N: usize> PushStack<T> for Stack<T, N> {
+    #[inline(always)]
+    fn push(&mut self, x: T) {
+        Stack::push(self, x)
+    }
+}
+
+/// Entry of the traversal stack: node reference and entry distance of its box.
 #[derive(Clone, Copy)]
 struct Entry {
-    node: NodeRef,
+    node: u32,
     t: f32,
 }
 
@@ -382,10 +302,7 @@ impl<'a> RayCaster<'a> {
 
     /// Bytes used by the traversal layout.
     pub fn memory_bytes(&self) -> usize {
-        let l = &self.layout;
-        l.children.len() * std::mem::size_of::<Child>()
-            + l.tris.len() * (std::mem::size_of::<TriVerts>() + 4)
-            + l.tree_id.len() * 4
+        self.layout.memory_bytes()
     }
 
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
@@ -429,10 +346,11 @@ impl<'a> RayCaster<'a> {
     /// Occlusion of many segments, in parallel; the result is in input order and does not
     /// depend on the number of threads.
     pub fn occluded_batch(&self, segs: &[Segment]) -> Vec<bool> {
-        segs.par_iter()
-            .with_min_len(256)
-            .map(|s| self.occluded(s.origin, s.dir, s.tmin, s.tmax))
-            .collect()
+        let mut out = vec![false; segs.len()];
+        out.par_chunks_mut(BATCH_CHUNK)
+            .zip(segs.par_chunks(BATCH_CHUNK))
+            .for_each(|(o, s)| self.occluded_stream(s, o));
+        out
     }
 
     /// Closest hits of many segments, in parallel, in input order.
@@ -445,10 +363,92 @@ impl<'a> RayCaster<'a> {
 
     /// Number of occluded segments (parallel, deterministic).
     pub fn count_occluded(&self, segs: &[Segment]) -> u64 {
-        segs.par_iter()
-            .with_min_len(256)
-            .filter(|s| self.occluded(s.origin, s.dir, s.tmin, s.tmax))
-            .count() as u64
+        segs.par_chunks(BATCH_CHUNK)
+            .map(|s| {
+                let mut o = [false; BATCH_CHUNK];
+                self.occluded_stream(s, &mut o[..s.len()]);
+                o.iter().filter(|&&x| x).count() as u64
+            })
+            .sum()
+    }
+
+    /// Occlusion of `segs` on the calling thread, written to `out` (same length), with
+    /// [`STREAM`] rays in flight at once: each step visits one node of each ray in turn, so
+    /// the memory loads of one ray's next node (prefetched when it was pushed) overlap with
+    /// the work on the others. Same results as [`RayCaster::occluded`] for every segment.
+    pub fn occluded_stream(&self, segs: &[Segment], out: &mut [bool]) {
+        assert_eq!(segs.len(), out.len(), "one output per segment");
+        let l = &self.layout;
+        let Some(root) = l.root else {
+            out.fill(false);
+            return;
+        };
+        let idle = Lane {
+            r: RayPre::new(Vec3::ZERO, Vec3::X).expect("a valid ray"),
+            r4: Ray4::default(),
+            tmin: 0.0,
+            tmax: 0.0,
+            seg: 0,
+            len: 0,
+            busy: false,
+            stack: [0; LANE_STACK],
+        };
+        let mut lanes = [idle; STREAM];
+        let mut next = 0usize;
+        // Start the next segment that is not decided at once in `lane`; false when none is
+        // left.
+        let start = |lane: &mut Lane, next: &mut usize, out: &mut [bool]| -> bool {
+            while *next < segs.len() {
+                let i = *next;
+                *next += 1;
+                out[i] = false;
+                let s = &segs[i];
+                let Some(r) = RayPre::new(s.origin, s.dir) else {
+                    continue;
+                };
+                if s.tmin.is_nan() || s.tmax.is_nan() || s.tmin > s.tmax {
+                    continue;
+                }
+                if r.slab(&l.root_box, s.tmin, s.tmax).is_none() {
+                    continue;
+                }
+                l.prefetch(root);
+                lane.r4.set(&r);
+                lane.r = r;
+                lane.tmin = s.tmin;
+                lane.tmax = s.tmax;
+                lane.seg = i as u32;
+                lane.stack[0] = root;
+                lane.len = 1;
+                lane.busy = true;
+                return true;
+            }
+            lane.busy = false;
+            false
+        };
+        let mut active = 0usize;
+        for lane in lanes.iter_mut() {
+            active += start(lane, &mut next, out) as usize;
+        }
+        while active > 0 {
+            for lane in lanes.iter_mut() {
+                if !lane.busy {
+                    continue;
+                }
+                match lane.step(l) {
+                    Step::Continue => continue,
+                    Step::Hit => out[lane.seg as usize] = true,
+                    Step::Miss => {}
+                    Step::Overflow => {
+                        let s = &segs[lane.seg as usize];
+                        out[lane.seg as usize] = self.occluded(s.origin, s.dir, s.tmin, s.tmax);
+                    }
+                }
+                if !start(lane, &mut next, out) {
+                    active -= 1;
+                }
+            }
+        }
     }
 
     /// Traversal counters of occlusion queries over `segs` (parallel; counts are sums, hence
@@ -542,7 +542,7 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> bool {
         let l = &self.layout;
-        let Some(root) = &l.root else {
+        let Some(root) = l.root else {
             return false;
         };
         let Some(r) = RayPre::new(origin, dir) else {
@@ -554,62 +554,26 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        if r.slab4(&root.lo, &root.hi, tmin, tmax).is_none() {
+        if r.slab(&l.root_box, tmin, tmax).is_none() {
             return false;
         }
-        let mut stack: Stack<NodeRef, STACK> = Stack::new();
-        stack.push(root.node);
+        let r4 = Ray4::new(&r);
+        let mut stack: Stack<u32, STACK> = Stack::new();
+        stack.push(root);
         while let Some(n) = stack.pop() {
             if STATS {
                 stats.nodes += 1;
             }
-            let ts = n.tri_start as usize;
-            for tri in &l.tris[ts..ts + n.num_tris as usize] {
+            let (ts, nt, g0, ng) = l.node(n);
+            if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
+                return true;
+            }
+            for g in &l.groups[g0..g0 + ng] {
                 if STATS {
-                    stats.tris += 1;
+                    stats.boxes += g.lanes as u64;
                 }
-                if intersect(&r, tri, tmin, tmax).is_some() {
-                    return true;
-                }
-            }
-            let cs = n.first_child as usize;
-            let ch = &l.children[cs..cs + n.num_children as usize];
-            if STATS {
-                stats.boxes += ch.len() as u64;
-            }
-            if let [c0, c1] = ch {
-                // Binary node: nearer child on top.
-                let h0 = r.slab4(&c0.lo, &c0.hi, tmin, tmax);
-                let h1 = r.slab4(&c1.lo, &c1.hi, tmin, tmax);
-                match (h0, h1) {
-                    (Some(t0), Some(t1)) => {
-                        prefetch_node(l, &c0.node);
-                        prefetch_node(l, &c1.node);
-                        if t0 <= t1 {
-                            stack.push(c1.node);
-                            stack.push(c0.node);
-                        } else {
-                            stack.push(c0.node);
-                            stack.push(c1.node);
-                        }
-                    }
-                    (Some(_), None) => {
-                        prefetch_node(l, &c0.node);
-                        stack.push(c0.node)
-                    }
-                    (None, Some(_)) => {
-                        prefetch_node(l, &c1.node);
-                        stack.push(c1.node)
-                    }
-                    (None, None) => {}
-                }
-                continue;
-            }
-            for c in ch.iter().rev() {
-                if r.slab4(&c.lo, &c.hi, tmin, tmax).is_some() {
-                    prefetch_node(l, &c.node);
-                    stack.push(c.node);
-                }
+                let (mask, tn) = r4.test(g, tmin, tmax);
+                push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
         }
         false
@@ -625,7 +589,7 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> Option<Hit> {
         let l = &self.layout;
-        let root = l.root.as_ref()?;
+        let root = l.root?;
         let r = RayPre::new(origin, dir)?;
         if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return None;
@@ -633,71 +597,112 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        let t0 = r.slab4(&root.lo, &root.hi, tmin, tmax)?;
+        let t0 = r.slab(&l.root_box, tmin, tmax)?;
+        let r4 = Ray4::new(&r);
         let mut best_t = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
         let mut stack: Stack<Entry, STACK> = Stack::new();
-        stack.push(Entry {
-            node: root.node,
-            t: t0,
-        });
+        stack.push(Entry { node: root, t: t0 });
         while let Some(e) = stack.pop() {
             if e.t > best_t * watertight::BOX_SLACK {
                 continue;
             }
-            let n = e.node;
+            let (ts, nt, g0, ng) = l.node(e.node);
             if STATS {
                 stats.nodes += 1;
-                stats.tris += n.num_tris as u64;
-                stats.boxes += n.num_children as u64;
+                stats.tris += nt as u64;
             }
-            for k in n.tri_start..n.tri_start + n.num_tris {
-                if let Some((t, u, v)) = intersect(&r, &l.tris[k as usize], tmin, best_t) {
-                    // Equal t: keep the lowest triangle id, as the brute-force loop does.
-                    let better = match best {
-                        None => true,
-                        Some(_) if t < best_t => true,
-                        Some((bk, _, _)) => l.tri_id[k as usize] < l.tri_id[bk as usize],
-                    };
-                    if better {
-                        best_t = t;
-                        best = Some((k, u, v));
-                    }
+            if nt > 0 {
+                l.closest_hit(&r, ts, nt, tmin, &mut best_t, &mut best);
+            }
+            if ng == 1 {
+                let g = &l.groups[g0];
+                if STATS {
+                    stats.boxes += g.lanes as u64;
                 }
+                let (mask, tn) = r4.test(g, tmin, best_t);
+                push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
+                    node: c,
+                    t,
+                });
+                continue;
             }
-            let cs = n.first_child as usize;
+            // More than four children: push every hit, then sort the new entries.
             let before = stack.size();
-            for c in &l.children[cs..cs + n.num_children as usize] {
-                if let Some(t) = r.slab4(&c.lo, &c.hi, tmin, best_t) {
-                    prefetch_node(l, &c.node);
-                    stack.push(Entry { node: c.node, t });
+            for g in &l.groups[g0..g0 + ng] {
+                if STATS {
+                    stats.boxes += g.lanes as u64;
+                }
+                let (mut mask, tn) = r4.test(g, tmin, best_t);
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    l.prefetch(g.child[i]);
+                    stack.push(Entry {
+                        node: g.child[i],
+                        t: tn[i],
+                    });
                 }
             }
             let k = stack.size() - before;
             if k > 1 {
-                // Nearest on top: sort the new entries by decreasing entry distance.
-                let s = stack.top_mut(k);
-                if k <= 16 {
-                    for i in 1..k {
-                        let x = s[i];
-                        let mut j = i;
-                        while j > 0 && s[j - 1].t < x.t {
-                            s[j] = s[j - 1];
-                            j -= 1;
-                        }
-                        s[j] = x;
-                    }
-                } else {
-                    s.sort_by(|a, b| b.t.total_cmp(&a.t));
-                }
+                // Nearest on top: decreasing entry distance.
+                stack.top_mut(k).sort_by(|a, b| b.t.total_cmp(&a.t));
             }
         }
-        best.map(|(k, u, v)| Hit {
+        best.map(|(tri, u, v)| Hit {
             t: best_t,
-            tri: l.tri_id[k as usize],
+            tri,
             u,
             v,
         })
+    }
+}
+
+/// Push the hit lanes (`mask`) of one group so that the nearest entry distance is on top
+/// (visited first); ties keep the tree's child order.
+#[inline(always)]
+fn push_sorted<T: Copy, const PREFETCH: bool>(
+    stack: &mut impl PushStack<T>,
+    l: &Layout,
+    mask: u32,
+    tn: &[f32; 4],
+    child: &[u32; 4],
+    entry: impl Fn(u32, f32) -> T,
+) {
+    match mask.count_ones() {
+        0 => {}
+        1 => {
+            let i = mask.trailing_zeros() as usize;
+            if PREFETCH {
+                l.prefetch(child[i]);
+            }
+            stack.push(entry(child[i], tn[i]));
+        }
+        _ => {
+            // Lanes sorted by decreasing distance (farthest pushed first).
+            let mut idx = [0usize; 4];
+            let mut k = 0;
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                // Insertion: keep idx[..k] by decreasing tn, ties in decreasing lane order.
+                let mut j = k;
+                while j > 0 && tn[idx[j - 1]] <= tn[i] {
+                    idx[j] = idx[j - 1];
+                    j -= 1;
+                }
+                idx[j] = i;
+                k += 1;
+            }
+            for &i in &idx[..k] {
+                if PREFETCH {
+                    l.prefetch(child[i]);
+                }
+                stack.push(entry(child[i], tn[i]));
+            }
+        }
     }
 }
 

@@ -2,7 +2,6 @@
 
 use super::*;
 use crate::cluster::{BuildNode, BuildTree, ClusterConfig, Strategy};
-use crate::geom::Aabb;
 use crate::scene::{Material, RawScene, SceneOptions};
 
 fn two_tri_scene() -> Scene {
@@ -46,25 +45,100 @@ fn layout_is_depth_first_with_inner_surfaces() {
     let s = two_tri_scene();
     let t = inner_surface_tree(&s);
     let rc = RayCaster::new(&s, &t);
-    assert_eq!(rc.layout.tree_id, vec![0, 1]);
-    assert_eq!(rc.layout.tri_id, vec![1, 0]);
-    assert_eq!(rc.layout.children.len(), 1);
-    let root = rc.layout.root.unwrap().node;
+    let l = &rc.layout;
+    // The root has a child: one group holding its own triangle (1) and the leaf's box; the
+    // leaf is encoded in place and holds triangle 0 in the second packet.
+    assert_eq!(l.root, Some(0));
+    assert_eq!(l.groups.len(), 1);
+    let g = &l.groups[0];
     assert_eq!(
-        (
-            root.first_child,
-            root.num_children,
-            root.tri_start,
-            root.num_tris
-        ),
-        (0, 1, 0, 1)
+        (g.tri_start, g.num_tris, g.num_groups, g.lanes),
+        (0, 1, 1, 1)
     );
-    let leaf = rc.layout.children[0].node;
-    assert_eq!(
-        (leaf.num_children, leaf.tri_start, leaf.num_tris),
-        (0, 1, 1)
-    );
-    let _ = Aabb::EMPTY;
+    assert_eq!(l.packets.len(), 2);
+    assert_eq!(l.packets[0].id, [1, u32::MAX, u32::MAX, u32::MAX]);
+    assert_eq!(l.packets[1].id, [0, u32::MAX, u32::MAX, u32::MAX]);
+    let leaf = g.child[0];
+    assert_ne!(leaf & layout::LEAF, 0);
+    assert_eq!(layout::leaf_run(leaf), (1, 1));
+    assert_eq!(g.child[1..], [layout::NONE; 3]);
+    // The leaf's box is triangle 0's box; empty lanes are inverted.
+    assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
+    assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
+    assert!(g.b[0][1] > g.b[3][1]);
+    assert_eq!(l.root_box, [0.0, 0.0, 0.0, 2.0, 2.0, 1.0]);
+}
+
+#[test]
+fn packets_and_groups_hold_wide_nodes() {
+    // A root with six leaf children of one triangle each: two groups (4 + 2 lanes).
+    let raw = RawScene {
+        name: "six".into(),
+        positions: (0..6)
+            .flat_map(|i| {
+                let x = i as f32 * 2.0;
+                [
+                    Vec3::new(x, 0.0, 0.0),
+                    Vec3::new(x + 1.0, 0.0, 0.0),
+                    Vec3::new(x, 1.0, 0.0),
+                ]
+            })
+            .collect(),
+        triangles: (0..6u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+        tri_material: vec![0; 6],
+        tri_object: vec![0; 6],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    let mut b = BuildTree::default();
+    let kids: Vec<u32> = (0..6)
+        .map(|i| {
+            b.push(BuildNode {
+                bbox: s.tri_bbox(i),
+                children: vec![],
+                surfaces: vec![i as u32],
+            })
+        })
+        .collect();
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: vec![],
+    });
+    let t = ClusterTree::from_build(b, 6, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let l = &rc.layout;
+    assert_eq!(l.groups.len(), 2);
+    assert_eq!((l.groups[0].num_groups, l.groups[0].lanes), (2, 4));
+    assert_eq!(l.groups[1].lanes, 2);
+    assert_eq!(l.packets.len(), 6);
+    // Every triangle is found from above, by both query kinds, with the right id.
+    for i in 0..6u32 {
+        let o = Vec3::new(i as f32 * 2.0 + 0.25, 0.25, 1.0);
+        let h = rc.closest(o, -Vec3::Z, 0.0, 2.0).unwrap();
+        assert_eq!(h.tri, i);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!(rc.occluded(o, -Vec3::Z, 0.0, 2.0));
+        assert!(!rc.occluded(o + Vec3::new(0.0, 2.0, 0.0), -Vec3::Z, 0.0, 2.0));
+    }
+    // The stream gives the same answers, in order.
+    let segs: Vec<Segment> = (0..12)
+        .map(|i| Segment {
+            origin: Vec3::new(
+                (i / 2) as f32 * 2.0 + 0.25,
+                0.25 + 2.0 * (i % 2) as f32,
+                1.0,
+            ),
+            dir: -Vec3::Z,
+            tmin: 0.0,
+            tmax: 2.0,
+        })
+        .collect();
+    let mut out = vec![false; segs.len()];
+    rc.occluded_stream(&segs, &mut out);
+    let want: Vec<bool> = (0..12).map(|i| i % 2 == 0).collect();
+    assert_eq!(out, want);
 }
 
 #[test]

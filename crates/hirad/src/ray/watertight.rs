@@ -208,6 +208,90 @@ pub fn intersect(r: &RayPre, tri: &TriVerts, tmin: f32, tmax: f32) -> Option<(f3
     Some((t, v * rcp, w * rcp))
 }
 
+/// Four triangles in structure-of-arrays form: `v[3k + a][lane]` is coordinate `a` of vertex
+/// `k` of the triangle in `lane`.
+pub type Tri4 = [[f32; 4]; 9];
+
+/// The triangle of `lane` of a [`Tri4`].
+#[inline(always)]
+pub fn tri_of(p: &Tri4, lane: usize) -> TriVerts {
+    std::array::from_fn(|i| p[i][lane])
+}
+
+/// The edge-function stage of [`intersect`] for four triangles at once: returns the mask of
+/// lanes that [`intersect`] may report as hit (the signs of the sheared edge functions agree,
+/// or one of them is exactly zero and needs the f64 recomputation). A lane outside the mask is
+/// certainly missed by [`intersect`]: the f32 operations are the same, in the same order, so
+/// the edge functions are bit-identical to the scalar test's.
+#[inline(always)]
+pub fn candidates4(r: &RayPre, p: &Tri4) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86_64 baseline; unaligned loads of [f32; 4].
+        #[allow(unused_unsafe)]
+        unsafe {
+            let ox = _mm_set1_ps(r.o[r.kx]);
+            let oy = _mm_set1_ps(r.o[r.ky]);
+            let oz = _mm_set1_ps(r.o[r.kz]);
+            let sx = _mm_set1_ps(r.sx);
+            let sy = _mm_set1_ps(r.sy);
+            let mut x = [_mm_setzero_ps(); 3];
+            let mut y = [_mm_setzero_ps(); 3];
+            for k in 0..3 {
+                let px = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.kx].as_ptr()), ox);
+                let py = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.ky].as_ptr()), oy);
+                let pz = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.kz].as_ptr()), oz);
+                x[k] = _mm_sub_ps(px, _mm_mul_ps(sx, pz));
+                y[k] = _mm_sub_ps(py, _mm_mul_ps(sy, pz));
+            }
+            let u = _mm_sub_ps(_mm_mul_ps(x[2], y[1]), _mm_mul_ps(y[2], x[1]));
+            let v = _mm_sub_ps(_mm_mul_ps(x[0], y[2]), _mm_mul_ps(y[0], x[2]));
+            let w = _mm_sub_ps(_mm_mul_ps(x[1], y[0]), _mm_mul_ps(y[1], x[0]));
+            let z = _mm_setzero_ps();
+            let zero = _mm_or_ps(
+                _mm_or_ps(_mm_cmpeq_ps(u, z), _mm_cmpeq_ps(v, z)),
+                _mm_cmpeq_ps(w, z),
+            );
+            let neg = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, z), _mm_cmplt_ps(v, z)),
+                _mm_cmplt_ps(w, z),
+            );
+            let pos = _mm_or_ps(
+                _mm_or_ps(_mm_cmpgt_ps(u, z), _mm_cmpgt_ps(v, z)),
+                _mm_cmpgt_ps(w, z),
+            );
+            let mixed = _mm_movemask_ps(_mm_and_ps(neg, pos)) as u32;
+            (!mixed | _mm_movemask_ps(zero) as u32) & 0xF
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut m = 0;
+        for lane in 0..4 {
+            let t = tri_of(p, lane);
+            let e = |k: usize| {
+                let q = [
+                    t[3 * k] - r.o[0],
+                    t[3 * k + 1] - r.o[1],
+                    t[3 * k + 2] - r.o[2],
+                ];
+                (q[r.kx] - r.sx * q[r.kz], q[r.ky] - r.sy * q[r.kz])
+            };
+            let ((ax, ay), (bx, by), (cx, cy)) = (e(0), e(1), e(2));
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let zero = u == 0.0 || v == 0.0 || w == 0.0;
+            let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+            if zero || !mixed {
+                m |= 1 << lane;
+            }
+        }
+        m
+    }
+}
+
 /// Convenience: intersect a ray with a triangle given by its corners.
 pub fn intersect_triangle(
     [p0, p1, p2]: [Vec3; 3],

@@ -1,0 +1,427 @@
+//! Traversal layout of a cluster tree: the tree's own nodes and children, stored for fast
+//! box tests (the topology is kept exactly: no node is added, merged or skipped).
+//!
+//! - A node with children (or with more triangles than a leaf reference can hold) owns
+//!   `⌈children/4⌉` consecutive [`Group`]s of 128 bytes: the boxes of up to four children in
+//!   structure-of-arrays form (one 4-wide SIMD slab test checks all four), the children's
+//!   references, and, in the first group, the node's own triangle run (surfaces attached at
+//!   inner nodes) and its number of groups.
+//! - A leaf is not stored as a node at all: its reference in the parent's group encodes its
+//!   triangle run directly (bit 31 set, 5 bits of count, 26 bits of first packet), so
+//!   reaching a leaf reads only its triangles.
+//! - Triangles are stored four to a [`Packet`] (structure of arrays, one SIMD edge test for
+//!   four triangles); each node's run starts a new packet, unused lanes are masked out.
+//! - Groups and triangle runs are in depth-first pre-order, so a subtree is contiguous.
+//!
+//! Boxes are the strategy's boxes grown to contain their contents exactly (strategies may
+//! leave an f32 slack that `validate` tolerates; a ray grazing such a triangle must still
+//! reach it, so that the result equals brute force for any tree).
+
+use super::watertight::{candidates4, intersect, tri_of, RayPre, Tri4, BOX_SLACK};
+use crate::cluster::ClusterTree;
+use crate::geom::Aabb;
+use crate::scene::Scene;
+
+/// Reference flag of a leaf encoded in place.
+pub(super) const LEAF: u32 = 1 << 31;
+const LEAF_COUNT_SHIFT: u32 = 26;
+/// Largest triangle count of an in-place leaf.
+const LEAF_MAX_TRIS: usize = (1 << (31 - LEAF_COUNT_SHIFT)) - 1;
+/// Largest first packet of an in-place leaf.
+const LEAF_MAX_START: usize = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Reference of an empty lane.
+pub(super) const NONE: u32 = u32::MAX;
+
+/// Decode the triangle run `(first packet, count)` of a leaf reference.
+#[inline(always)]
+pub(super) fn leaf_run(r: u32) -> (usize, usize) {
+    (
+        (r & LEAF_MAX_START as u32) as usize,
+        ((r & !LEAF) >> LEAF_COUNT_SHIFT) as usize,
+    )
+}
+
+fn leaf_ref(start: usize, count: usize) -> u32 {
+    LEAF | ((count as u32) << LEAF_COUNT_SHIFT) | start as u32
+}
+
+/// Up to four children of one node: boxes in structure-of-arrays form and references.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(super) struct Group {
+    /// `[min x, min y, min z, max x, max y, max z]`, one lane per child; empty lanes hold an
+    /// inverted infinite box (never hit).
+    pub b: [[f32; 4]; 6],
+    /// Child references: a group index, a leaf ([`LEAF`] bit) or [`NONE`].
+    pub child: [u32; 4],
+    /// The node's own triangle run: first packet and number of triangles (first group of a
+    /// node only).
+    pub tri_start: u32,
+    pub num_tris: u32,
+    /// Number of consecutive groups of the node (first group only).
+    pub num_groups: u32,
+    /// Number of non-empty lanes in this group.
+    pub lanes: u32,
+}
+
+impl Default for Group {
+    fn default() -> Self {
+        let inf = f32::INFINITY;
+        Group {
+            b: [
+                [inf; 4], [inf; 4], [inf; 4], [-inf; 4], [-inf; 4], [-inf; 4],
+            ],
+            child: [NONE; 4],
+            tri_start: 0,
+            num_tris: 0,
+            num_groups: 0,
+            lanes: 0,
+        }
+    }
+}
+
+/// The laid-out tree.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Layout {
+    /// Box of the root, `[minx, miny, minz, maxx, maxy, maxz]`, tested first.
+    pub root_box: [f32; 6],
+    /// Reference of the root; `None` for a tree without nodes.
+    pub root: Option<u32>,
+    pub groups: Vec<Group>,
+    /// Triangles in node order, four to a packet.
+    pub packets: Vec<Packet>,
+}
+
+/// Four triangles (structure of arrays) and their scene ids (`u32::MAX` in unused lanes).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(super) struct Packet {
+    pub v: Tri4,
+    pub id: [u32; 4],
+}
+
+/// Mask of the lanes used by packet `k` of a run of `n` triangles.
+#[inline(always)]
+pub(super) fn lane_mask(n: usize, k: usize) -> u32 {
+    let rest = n - 4 * k;
+    if rest >= 4 {
+        0xF
+    } else {
+        (1 << rest) - 1
+    }
+}
+
+impl Layout {
+    pub(super) fn new(scene: &Scene, tree: &ClusterTree) -> Layout {
+        let n = tree.nodes.len();
+        if n == 0 {
+            return Layout::default();
+        }
+        let nt = scene.num_triangles() as u32;
+        // Children of a node that the layout follows: valid ids greater than the parent's
+        // (true of every laid-out tree; guarantees termination on malformed input).
+        let kids = |id: u32| {
+            tree.nodes[id as usize]
+                .children()
+                .filter(move |&c| (c as usize) < n && c > id)
+        };
+        let surfs = |id: u32| {
+            let node = &tree.nodes[id as usize];
+            let end =
+                (node.first_surface as usize + node.num_surfaces as usize).min(tree.surfaces.len());
+            let start = (node.first_surface as usize).min(end);
+            tree.surfaces[start..end]
+                .iter()
+                .copied()
+                .filter(|&s| s < nt)
+        };
+        // Depth-first pre-order.
+        let mut order = Vec::with_capacity(n);
+        let mut seen = vec![false; n];
+        let mut stack = vec![0u32];
+        while let Some(id) = stack.pop() {
+            if std::mem::replace(&mut seen[id as usize], true) {
+                continue;
+            }
+            order.push(id);
+            let mut k: Vec<u32> = kids(id).collect();
+            k.reverse();
+            stack.extend(k);
+        }
+        // Pass 1: references, group and triangle positions.
+        let mut refs = vec![NONE; n];
+        let mut tri_pos = vec![0usize; n];
+        let (mut ng, mut npk) = (0usize, 0usize);
+        for &id in &order {
+            let c = kids(id).count();
+            let t = surfs(id).count();
+            tri_pos[id as usize] = npk;
+            if c == 0 && t <= LEAF_MAX_TRIS && npk <= LEAF_MAX_START {
+                refs[id as usize] = leaf_ref(npk, t);
+            } else {
+                refs[id as usize] = ng as u32;
+                ng += c.div_ceil(4).max(1);
+            }
+            npk += t.div_ceil(4);
+        }
+        // Boxes grown to their contents, children first.
+        let mut bound = vec![Aabb::EMPTY; n];
+        for &id in order.iter().rev() {
+            let mut b = tree.nodes[id as usize].bbox;
+            for s in surfs(id) {
+                b.grow_box(&scene.tri_bbox(s as usize));
+            }
+            for c in kids(id) {
+                let cb = bound[c as usize];
+                b.grow_box(&cb);
+            }
+            bound[id as usize] = b;
+        }
+        // Pass 2: fill in.
+        let mut groups = vec![Group::default(); ng];
+        let empty = Packet {
+            v: [[0.0; 4]; 9],
+            id: [u32::MAX; 4],
+        };
+        let mut packets = vec![empty; npk];
+        for &id in &order {
+            let r = refs[id as usize];
+            if r & LEAF == 0 {
+                let g0 = r as usize;
+                let k: Vec<u32> = kids(id).collect();
+                let num_groups = k.len().div_ceil(4).max(1);
+                for (i, &c) in k.iter().enumerate() {
+                    let g = &mut groups[g0 + i / 4];
+                    let lane = i % 4;
+                    let b = &bound[c as usize];
+                    for a in 0..3 {
+                        g.b[a][lane] = b.min[a];
+                        g.b[a + 3][lane] = b.max[a];
+                    }
+                    g.child[lane] = refs[c as usize];
+                    g.lanes += 1;
+                }
+                let g = &mut groups[g0];
+                g.tri_start = tri_pos[id as usize] as u32;
+                g.num_tris = surfs(id).count() as u32;
+                g.num_groups = num_groups as u32;
+            }
+            for (i, s) in surfs(id).enumerate() {
+                let p = &mut packets[tri_pos[id as usize] + i / 4];
+                let lane = i % 4;
+                for (k, v) in scene.tri_vertices(s as usize).iter().enumerate() {
+                    for a in 0..3 {
+                        p.v[3 * k + a][lane] = v[a];
+                    }
+                }
+                p.id[lane] = s;
+            }
+        }
+        let b = &bound[0];
+        Layout {
+            root_box: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
+            root: Some(refs[0]),
+            groups,
+            packets,
+        }
+    }
+
+    /// Bytes used by the layout.
+    pub(super) fn memory_bytes(&self) -> usize {
+        self.groups.len() * std::mem::size_of::<Group>()
+            + self.packets.len() * std::mem::size_of::<Packet>()
+    }
+
+    /// The triangle run `(first packet, count)` of a reference and, for a node with groups, its
+    /// first group and number of groups.
+    #[inline(always)]
+    pub(super) fn node(&self, r: u32) -> (usize, usize, usize, usize) {
+        if r & LEAF != 0 {
+            let (s, c) = leaf_run(r);
+            (s, c, 0, 0)
+        } else {
+            let g = &self.groups[r as usize];
+            (
+                g.tri_start as usize,
+                g.num_tris as usize,
+                r as usize,
+                g.num_groups as usize,
+            )
+        }
+    }
+
+    /// True when a triangle of the run `(ps, n)` is hit in `[tmin, tmax]`. Adds the
+    /// triangles tested to `*tested`.
+    #[inline(always)]
+    pub(super) fn any_hit(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        tmax: f32,
+        tested: &mut u64,
+    ) -> bool {
+        for k in 0..n.div_ceil(4) {
+            let p = &self.packets[ps + k];
+            let valid = lane_mask(n, k);
+            *tested += valid.count_ones() as u64;
+            let mut m = candidates4(r, &p.v) & valid;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if intersect(r, &tri_of(&p.v, i), tmin, tmax).is_some() {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Closest hit among the triangles of the run `(ps, n)` nearer than `*best_t`: updates
+    /// `*best_t` and `*best = (triangle id, u, v)`; equal distances keep the lowest id.
+    #[inline(always)]
+    pub(super) fn closest_hit(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        best_t: &mut f32,
+        best: &mut Option<(u32, f32, f32)>,
+    ) {
+        for k in 0..n.div_ceil(4) {
+            let p = &self.packets[ps + k];
+            let mut m = candidates4(r, &p.v) & lane_mask(n, k);
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if let Some((t, u, v)) = intersect(r, &tri_of(&p.v, i), tmin, *best_t) {
+                    let id = p.id[i];
+                    let better = match *best {
+                        None => true,
+                        Some(_) if t < *best_t => true,
+                        Some((bid, _, _)) => id < bid,
+                    };
+                    if better {
+                        *best_t = t;
+                        *best = Some((id, u, v));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Hint the cache to load what visiting `r` reads first.
+    #[inline(always)]
+    pub(super) fn prefetch(&self, r: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = if r & LEAF != 0 {
+                self.packets.as_ptr().wrapping_add(leaf_run(r).0) as *const i8
+            } else {
+                self.groups.as_ptr().wrapping_add(r as usize) as *const i8
+            };
+            // SAFETY: a prefetch is only a hint and never faults, whatever the address.
+            #[allow(unused_unsafe)]
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = r;
+    }
+}
+
+/// Per-ray data of the 4-wide box test: origin and reciprocal direction broadcast to four
+/// lanes, and for each axis the index of the near and far plane in [`Group::b`] (chosen by
+/// the sign of the direction, so that `0·∞ = NaN` can only come from an origin lying exactly
+/// in a box plane, which the comparisons then ignore, as the scalar [`RayPre::slab`] does).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(16))]
+pub(super) struct Ray4 {
+    o: [[f32; 4]; 3],
+    inv: [[f32; 4]; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl Ray4 {
+    pub(super) fn new(r: &RayPre) -> Ray4 {
+        let mut x = Ray4::default();
+        x.set(r);
+        x
+    }
+
+    /// Take the data of `r`.
+    #[inline(always)]
+    pub(super) fn set(&mut self, r: &RayPre) {
+        for a in 0..3 {
+            self.o[a] = [r.o[a]; 4];
+            self.inv[a] = [r.inv[a]; 4];
+            // Plane indices are in 0..6 (RayPre's contract); keep that invariant for the
+            // unchecked loads of `test`.
+            self.near[a] = r.near[a] % 6;
+            self.far[a] = r.far[a] % 6;
+        }
+    }
+
+    /// Slab test of the four boxes of `g` clipped to `[tmin, tmax]`: bit `i` of the mask is
+    /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit; `tn` its entry
+    /// distance.
+    #[inline(always)]
+    pub(super) fn test(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [f32; 4]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::*;
+            // SAFETY: SSE and SSE2 are part of the x86_64 baseline; `o`/`inv` are 16-byte
+            // aligned (repr align 16, arrays of four f32 at offsets multiple of 16), the other
+            // loads are unaligned; plane indices are below 6 by construction (`set`).
+            #[allow(unused_unsafe)]
+            unsafe {
+                let mut tn = _mm_set1_ps(tmin);
+                let mut tf = _mm_set1_ps(tmax);
+                for a in 0..3 {
+                    let o = _mm_load_ps(self.o[a].as_ptr());
+                    let inv = _mm_load_ps(self.inv[a].as_ptr());
+                    // `near`/`far` are below 6 (`set`), the length of `g.b`.
+                    let n = _mm_loadu_ps(g.b.get_unchecked(self.near[a]).as_ptr());
+                    let f = _mm_loadu_ps(g.b.get_unchecked(self.far[a]).as_ptr());
+                    let t0 = _mm_mul_ps(_mm_sub_ps(n, o), inv);
+                    let t1 = _mm_mul_ps(_mm_sub_ps(f, o), inv);
+                    // max/min return the second operand when either is NaN: a NaN plane
+                    // distance leaves the running bound unchanged.
+                    tn = _mm_max_ps(t0, tn);
+                    tf = _mm_min_ps(t1, tf);
+                }
+                let hit = _mm_cmple_ps(tn, _mm_mul_ps(tf, _mm_set1_ps(BOX_SLACK)));
+                let mask = _mm_movemask_ps(hit) as u32;
+                let mut out = [0f32; 4];
+                _mm_storeu_ps(out.as_mut_ptr(), tn);
+                (mask, out)
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let mut mask = 0;
+            let mut out = [0f32; 4];
+            for lane in 0..4 {
+                let mut tn = tmin;
+                let mut tf = tmax;
+                for a in 0..3 {
+                    let t0 = (g.b[self.near[a]][lane] - self.o[a][0]) * self.inv[a][0];
+                    let t1 = (g.b[self.far[a]][lane] - self.o[a][0]) * self.inv[a][0];
+                    tn = if t0 > tn { t0 } else { tn };
+                    tf = if t1 < tf { t1 } else { tf };
+                }
+                if tn <= tf * BOX_SLACK {
+                    mask |= 1 << lane;
+                }
+                out[lane] = tn;
+            }
+            (mask, out)
+        }
+    }
+}
