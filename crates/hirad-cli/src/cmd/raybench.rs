@@ -43,7 +43,10 @@ struct Row {
     build_ms: f64,
     layout_ms: f64,
     query_ms: f64,
+    /// Batch occlusion (`count_occluded`: several rays in flight per thread).
     mrays_per_s: f64,
+    /// One query at a time (`occluded` per segment, as the solver casts its rays).
+    single_mrays_per_s: f64,
     occluded: u64,
     /// Rays per second relative to `sah` (when `sah` is in the list).
     rel_sah: Option<f64>,
@@ -113,6 +116,23 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             times.push(t0.elapsed().as_secs_f64() * 1e3);
         }
         let query_ms = median(times);
+        let mut times = Vec::with_capacity(repeat);
+        for _ in 0..repeat {
+            use rayon::prelude::*;
+            let t0 = Instant::now();
+            let n = segs
+                .par_iter()
+                .with_min_len(256)
+                .filter(|s| rc.occluded(s.origin, s.dir, s.tmin, s.tmax))
+                .count() as u64;
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+            if n != occluded {
+                return Err(anyhow::anyhow!(
+                    "{st}: single-ray occluded count {n} differs from the batch count {occluded}"
+                ));
+            }
+        }
+        let single_ms = median(times);
         let (occ2, stats): (u64, RayStats) = rc.occluded_batch_stats(&segs);
         debug_assert_eq!(occ2, occluded);
         let closest = if args.closest {
@@ -151,6 +171,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             layout_ms,
             query_ms,
             mrays_per_s: segs.len() as f64 / (query_ms * 1e3),
+            single_mrays_per_s: segs.len() as f64 / (single_ms * 1e3),
             occluded,
             rel_sah: None,
             nodes_per_ray: stats.nodes_per_ray(),
@@ -220,13 +241,14 @@ fn print_table(r: &Report) {
         println!("brute-force occluded: {b}");
     }
     println!(
-        "{:<8} {:>9} {:>10} {:>9} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8} {:>8}",
+        "{:<8} {:>9} {:>10} {:>9} {:>10} {:>8} {:>8} {:>9} {:>7} {:>8} {:>8} {:>8}",
         "strategy",
         "clusters",
         "build ms",
         "layout ms",
         "query ms",
         "Mrays/s",
+        "single",
         "occluded",
         "vs sah",
         "nodes/ray",
@@ -235,13 +257,14 @@ fn print_table(r: &Report) {
     );
     for x in &r.rows {
         println!(
-            "{:<8} {:>9} {:>10.1} {:>9.1} {:>10.1} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1} {:>8.1}",
+            "{:<8} {:>9} {:>10.1} {:>9.1} {:>10.1} {:>8.3} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1} {:>8.1}",
             x.strategy,
             x.clusters,
             x.build_ms,
             x.layout_ms,
             x.query_ms,
             x.mrays_per_s,
+            x.single_mrays_per_s,
             x.occluded,
             opt(x.rel_sah, 2),
             x.nodes_per_ray,

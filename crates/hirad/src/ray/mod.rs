@@ -5,22 +5,28 @@
 //! [`RayCaster::closest`] (first hit). Segments are `origin + t·dir`, `t ∈ [tmin, tmax]`, `dir`
 //! not necessarily normalised.
 //!
-//! [`RayCaster::new`] lays the tree out for traversal without changing its topology: nodes in
-//! depth-first pre-order, the boxes of a node's children stored contiguously with the node
-//! (one slab test per child, done by the parent), the triangles attached to each node copied in
-//! node order. Surfaces may hang at inner nodes as well as leaves, boxes may overlap and a node
-//! may have any number of children. The triangle test is watertight ([`watertight`]) and
-//! computes the hit distance accurately (f64 plane equation); the box test is conservative
+//! [`RayCaster::new`] lays the tree out for traversal without changing its topology
+//! (`layout.rs`): the children of a node in groups of four boxes in structure-of-arrays form
+//! (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
+//! child reference, the triangles attached to each node (inner nodes included) in packets of
+//! four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap
+//! and a node may have any number of children. The triangle test is watertight
+//! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
+//! with its f64 hit distance decides every candidate); the box test is conservative
 //! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
 //! are the strategy's boxes grown to contain their contents exactly, so the result equals a
 //! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
 //! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
 //! strategies.
 //!
-//! Binary nodes push the nearer child last (visited first) also for occlusion; closest-hit
-//! queries sort the hit children of any node by entry distance and skip entries farther than
-//! the current hit. Counters ([`RayStats`]) are compiled in only for the `*_stats` entry
-//! points (const generic), so the plain queries carry no counting cost.
+//! The hit children of a group are pushed farthest first (the nearest is visited next), for
+//! occlusion as well; closest-hit queries also skip entries farther than the current hit.
+//! Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
+//! [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
+//! node of each in turn, so that the memory latency of one ray's next node (prefetched when
+//! it was pushed) overlaps with work on the others. Counters ([`RayStats`]) are compiled in
+//! only for the `*_stats` entry points (const generic), so the plain queries carry no
+//! counting cost.
 //!
 //! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
