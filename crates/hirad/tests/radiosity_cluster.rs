@@ -11,6 +11,8 @@ use hirad::radiosity::{solve, Reception, SolverConfig};
 use hirad::rng::SplitMix64;
 use hirad::scene::{Material, RawScene, Scene, SceneOptions};
 
+mod radiosity_common;
+
 const PATCHES: usize = 6000;
 
 fn gauss(rng: &mut SplitMix64) -> f32 {
@@ -225,4 +227,103 @@ fn cluster_emits_projected_area_quarter() {
     let rel = (received - predicted).abs() / predicted;
     println!("cluster emission: square receives {received:.6e}, I·Ω predicts {predicted:.6e} (rel {rel:.2e})");
     assert!(rel < 2e-3, "{rel}");
+}
+
+/// True projected area `Σ A_k max(0, n_k·d)` of the surfaces below cluster element `c`.
+fn projected_area(el: &hirad::radiosity::element::Elements, c: u32, d: Vec3) -> f64 {
+    let mut leaves = Vec::new();
+    el.leaves_of(c, &mut leaves);
+    leaves
+        .iter()
+        .map(|&s| {
+            let e = &el.elems[s as usize];
+            e.area as f64 * e.normal.dot(d).max(0.0) as f64
+        })
+        .sum()
+}
+
+#[test]
+fn anisotropy_bound_holds_and_flags_flat_clusters() {
+    use hirad::radiosity::element::Elements;
+    use hirad::radiosity::formfactor::KernelCtx;
+    use hirad::radiosity::visibility::Visibility;
+    use hirad::radiosity::VisibilityMode;
+    // Every cluster of the random cloud against both square triangles: the true projected
+    // area towards the receiver never exceeds the bound (1 + g)·ΣA/4, and a cloud of random
+    // normals is nearly isotropic (g ≈ 1 for the whole cloud: its normal sum is nearly zero).
+    let scene = cloud_scene(false);
+    let (tree, cloud) = cloud_tree(&scene);
+    let el = Elements::build(&scene, &tree, false);
+    let vis = Visibility::new(&scene, &tree, VisibilityMode::None, 0.1).unwrap();
+    let ctx = KernelCtx {
+        elems: &el,
+        tree: &tree,
+        vis: &vis,
+        n_rays: 1,
+        seed: 1,
+    };
+    let n = scene.num_triangles() as u32;
+    let mut checked = 0;
+    let mut worst = 0.0f64;
+    for c in 1..el.num_clusters {
+        for t in [n - 2, n - 1] {
+            let r = el.first_root + t;
+            let g = ctx.anisotropy(r, c);
+            let e = &el.elems[c as usize];
+            let d = (el.elems[r as usize].centroid - e.centroid).normalize();
+            let ratio = projected_area(&el, c, d) / (e.area as f64 / 4.0);
+            assert!(
+                ratio <= 1.0 + g + 1e-4,
+                "cluster {c}: ratio {ratio} > 1 + {g}"
+            );
+            worst = worst.max(ratio - 1.0 - g);
+            checked += 1;
+        }
+    }
+    let g_cloud = ctx.anisotropy(el.first_root + n - 1, cloud);
+    println!("{checked} cluster/receiver pairs within the bound (closest {worst:.3}); cloud g = {g_cloud:.3}");
+    assert!(g_cloud <= 1.1, "{g_cloud}");
+    assert_eq!(ctx.anisotropy(el.first_root, el.first_root + n - 1), 0.0);
+}
+
+#[test]
+fn flat_cluster_facing_receiver_has_anisotropy_three() {
+    use hirad::radiosity::element::Elements;
+    use hirad::radiosity::formfactor::KernelCtx;
+    use hirad::radiosity::visibility::Visibility;
+    use hirad::radiosity::VisibilityMode;
+    // A unit square (its own cluster, facing +z) and a small square 10 m above it facing down:
+    // the flat cluster shows its full area (4× ΣA/4) straight up, so g = 3 up to the
+    // direction cone of the two ends.
+    let scene = radiosity_common::quads_scene(
+        &[
+            radiosity_common::square_z(0.0, true, 0, 0),
+            radiosity_common::Quad {
+                p: [
+                    Vec3::new(0.45, 0.45, 10.0),
+                    Vec3::new(0.45, 0.55, 10.0),
+                    Vec3::new(0.55, 0.55, 10.0),
+                    Vec3::new(0.55, 0.45, 10.0),
+                ],
+                mat: 0,
+                group: 1,
+            },
+        ],
+        vec![radiosity_common::emitter()],
+    );
+    let tree = radiosity_common::tree_by_object(&scene);
+    let el = Elements::build(&scene, &tree, false);
+    let vis = Visibility::new(&scene, &tree, VisibilityMode::None, 0.1).unwrap();
+    let ctx = KernelCtx {
+        elems: &el,
+        tree: &tree,
+        vis: &vis,
+        n_rays: 1,
+        seed: 1,
+    };
+    let flat = tree.surface_node[0];
+    let top = el.first_root + 2;
+    let g = ctx.anisotropy(top, flat);
+    println!("flat cluster seen from above: g = {g:.4}");
+    assert!((g - 3.0).abs() < 1e-3, "{g}");
 }

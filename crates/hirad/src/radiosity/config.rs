@@ -136,6 +136,10 @@ pub struct SolverConfig {
     pub sky_rays: u32,
     /// Seed of every random choice (combined with element and link ids).
     pub seed: u64,
+    /// Also refine a link from a cluster while the bound on the error of the isotropic
+    /// emission model (`KernelCtx::anisotropy`) times `B_j · F̃` exceeds ε: flat clusters that
+    /// face their receiver show up to 4× the isotropic projected area `ΣA/4`.
+    pub anisotropy_refine: bool,
 }
 
 impl Default for SolverConfig {
@@ -156,6 +160,7 @@ impl Default for SolverConfig {
             max_memory: None,
             sky_rays: 16,
             seed: 1,
+            anisotropy_refine: true,
         }
     }
 }

@@ -66,6 +66,18 @@ impl Element {
     }
 }
 
+/// Orientation summary of the surfaces inside a cluster, used to bound the error of the
+/// isotropic cluster model (a cluster's true projected area towards a direction `d` is
+/// `Σ A_k max(0, n_k·d)`, which the model replaces by `Σ A_k / 4`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClusterOrient {
+    /// Area-weighted normal sum `Σ A_k n_k` over the root surface elements inside.
+    pub area_normal: Vec3,
+    /// Cosine of the half-angle of the cone around `area_normal` that holds every normal
+    /// inside (−1 when there is no such cone narrower than the sphere).
+    pub cone_cos: f32,
+}
+
 /// The arena of elements with their radiosity state.
 #[derive(Clone, Debug)]
 pub struct Elements {
@@ -85,6 +97,8 @@ pub struct Elements {
     pub h: Vec<DVec3>,
     /// Direct irradiance from the sun and sky (surface elements; zero without them).
     pub direct: Vec<DVec3>,
+    /// Orientation summary per cluster (index = cluster id).
+    pub orient: Vec<ClusterOrient>,
 }
 
 impl Elements {
@@ -185,6 +199,7 @@ impl Elements {
                 e.rho = (r / a).as_vec3();
             }
         }
+        let orient = cluster_orientation(&elems, &cluster_kids, nc);
         let n = elems.len();
         Elements {
             elems,
@@ -196,6 +211,7 @@ impl Elements {
             b: vec![DVec3::ZERO; n],
             h: vec![DVec3::ZERO; n],
             direct: vec![DVec3::ZERO; n],
+            orient,
         }
     }
 
@@ -278,6 +294,7 @@ impl Elements {
             + (self.b.capacity() + self.h.capacity() + self.direct.capacity())
                 * std::mem::size_of::<DVec3>()
             + self.cluster_kids.capacity() * 4
+            + self.orient.capacity() * std::mem::size_of::<ClusterOrient>()
     }
 
     /// Bytes one more element costs.
@@ -309,6 +326,58 @@ impl Elements {
             self.leaves_of(c, out);
         }
     }
+}
+
+/// Orientation summaries of the clusters `0..nc`: area-weighted normal sums bottom-up, then
+/// the widest angle between each cluster's mean normal and the normal of any root surface
+/// inside (every root surface walks up its cluster ancestors).
+fn cluster_orientation(elems: &[Element], kids: &[u32], nc: u32) -> Vec<ClusterOrient> {
+    let mut sum = vec![DVec3::ZERO; nc as usize];
+    for id in (0..nc as usize).rev() {
+        let e = &elems[id];
+        let mut acc = DVec3::ZERO;
+        for &k in &kids[e.first_child as usize..(e.first_child + e.num_children) as usize] {
+            acc += if k < nc {
+                sum[k as usize]
+            } else {
+                let s = &elems[k as usize];
+                s.normal.as_dvec3() * s.area as f64
+            };
+        }
+        sum[id] = acc;
+    }
+    let axis: Vec<DVec3> = (0..nc as usize)
+        .map(|id| {
+            let a = elems[id].area as f64;
+            let l = sum[id].length();
+            if a > 0.0 && l > 1e-6 * a {
+                sum[id] / l
+            } else {
+                DVec3::ZERO
+            }
+        })
+        .collect();
+    let mut cos_min = vec![1.0f64; nc as usize];
+    for s in &elems[nc as usize..] {
+        if s.kind != Kind::Surface || s.level != 0 {
+            continue;
+        }
+        let n = s.normal.as_dvec3();
+        let mut c = s.parent;
+        while c != NONE && c < nc {
+            let ax = axis[c as usize];
+            let v = if ax == DVec3::ZERO { -1.0 } else { n.dot(ax) };
+            cos_min[c as usize] = cos_min[c as usize].min(v);
+            c = elems[c as usize].parent;
+        }
+    }
+    (0..nc as usize)
+        .map(|id| ClusterOrient {
+            area_normal: sum[id].as_vec3(),
+            // Rounding margin, so that the cone holds its normals in f32.
+            cone_cos: (cos_min[id] - 1e-5).max(-1.0) as f32,
+        })
+        .collect()
 }
 
 /// Iterator over the children of an element.

@@ -8,6 +8,14 @@
 //! Gather runs per receiver in parallel, push-pull per root surface in parallel, and every
 //! total is summed sequentially in id order: results do not depend on the thread count.
 //!
+//! Iterations: the links are refined against the current radiosity on the first iteration,
+//! again whenever the total power has moved by more than [`REFINE_DRIFT`] since, and once more
+//! when the change of total power falls below `tol_converge` (the solve has converged when an
+//! iteration that began with a refinement pass changes the power by less than that); the other
+//! iterations only gather and push-pull. Each leaf's kernels (its own links, its ancestors' and
+//! its clusters' weighted by the reception model) times its reflectance may not exceed
+//! [`GAIN_MAX`], which keeps the iteration convergent.
+//!
 //! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
 //! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
 //! the sky (uniform radiance `L_sky` over the directions above the horizon of the up axis) is
@@ -31,6 +39,17 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+/// Refinement is repeated (before the next gather) when the total power has moved by more
+/// than this fraction since the links were last refined, and always once more at
+/// convergence; in between, iterations only gather and push-pull over the same links.
+const REFINE_DRIFT: f64 = 0.05;
+
+/// Largest gain `ρ · Σ K` (largest channel of ρ) of a leaf: every row of the iteration matrix
+/// then sums to less than 1, so the gather iteration converges whatever the kernel estimates.
+/// Physically `Σ_j F_ij ≤ 1`, so only leaves whose estimated kernels sum above `0.95 / ρ`
+/// are touched (none in a furnace of ρ = 0.5 unless the estimates are off by 90%).
+const GAIN_MAX: f64 = 0.95;
 
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
@@ -110,8 +129,10 @@ struct Gathered {
     h: DVec3,
     /// Irradiance (channel sum) from cluster sources (surface receivers).
     h_cluster: f64,
-    /// Cluster receivers: (unit direction to the source, irradiance) per link.
-    entries: Vec<(Vec3, DVec3)>,
+    /// Sum of the link kernels (surface receivers).
+    k_sum: f64,
+    /// Cluster receivers: (unit direction to the source, irradiance, kernel) per link.
+    entries: Vec<(Vec3, DVec3, f32)>,
 }
 
 /// Result of push-pull below one root surface.
@@ -123,6 +144,8 @@ struct RootResult {
     gathered: f64,
     gathered_cluster: f64,
     direct: f64,
+    /// Leaves whose kernel sum exceeded 1.
+    clamped: u64,
 }
 
 struct Solver<'a> {
@@ -140,9 +163,11 @@ struct Solver<'a> {
     rays: u64,
     /// Per cluster: range into `entries`.
     cl_ranges: Vec<(u32, u32)>,
-    entries: Vec<(Vec3, DVec3)>,
+    entries: Vec<(Vec3, DVec3, f32)>,
     /// Per element: irradiance (channel sum) gathered from cluster sources.
     h_cluster: Vec<f64>,
+    /// Per element: sum of the kernels of its own links (surface receivers).
+    k_sum: Vec<f64>,
     root_irr: Vec<DVec3>,
     has_sun_sky: bool,
     stats: SolveStats,
@@ -210,6 +235,7 @@ impl<'a> Solver<'a> {
             cfg,
             vis,
             h_cluster: vec![0.0; el.len()],
+            k_sum: vec![0.0; el.len()],
             el,
             links: Vec::new(),
             set: LinkSet::default(),
@@ -254,14 +280,22 @@ impl<'a> Solver<'a> {
         }
         progress.start("solve", self.cfg.max_iters as u64);
         let mut prev = p0;
+        // Power of the radiosity the links were last refined against.
+        let mut p_refined = p0;
+        let mut need_refine = true;
         for it in 1..=self.cfg.max_iters {
             if cancel.load(Ordering::Relaxed) {
                 progress.finish();
                 return Err(Error::Interrupted);
             }
-            let t = Instant::now();
-            self.refine(it == 1, cancel)?;
-            self.stats.time.refine += t.elapsed().as_secs_f64();
+            let refined = need_refine;
+            if refined {
+                let t = Instant::now();
+                self.refine(it == 1, cancel)?;
+                self.stats.time.refine += t.elapsed().as_secs_f64();
+                self.stats.refinements += 1;
+                p_refined = prev;
+            }
             let t = Instant::now();
             self.gather();
             self.stats.time.gather += t.elapsed().as_secs_f64();
@@ -293,8 +327,14 @@ impl<'a> Solver<'a> {
                 self.el.len()
             );
             if it > 1 && rel < self.cfg.tol_converge {
-                self.stats.converged = true;
-                break;
+                if refined {
+                    self.stats.converged = true;
+                    break;
+                }
+                // Check the links against the converged radiosity before stopping.
+                need_refine = true;
+            } else {
+                need_refine = (p - p_refined).abs() > REFINE_DRIFT * p.abs();
             }
         }
         progress.finish();
@@ -317,10 +357,10 @@ impl<'a> Solver<'a> {
 
     fn memory_now(&self, extra_links: usize) -> u64 {
         (self.el.memory_bytes()
-            + self.h_cluster.capacity() * 8
+            + (self.h_cluster.capacity() + self.k_sum.capacity()) * 8
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * std::mem::size_of::<Link>()
-            + self.entries.capacity() * std::mem::size_of::<(Vec3, DVec3)>()) as u64
+            + self.entries.capacity() * std::mem::size_of::<(Vec3, DVec3, f32)>()) as u64
     }
 
     fn note_peak(&mut self) {
@@ -409,6 +449,7 @@ impl<'a> Solver<'a> {
             if !to_split.is_empty() {
                 let n_before = self.h_cluster.len();
                 self.h_cluster.resize(self.el.len(), 0.0);
+                self.k_sum.resize(self.el.len(), 0.0);
                 if self.has_sun_sky {
                     self.compute_direct(n_before as u32, self.el.len() as u32);
                 }
@@ -477,12 +518,18 @@ impl<'a> Solver<'a> {
             if ctx.is_zero(ri, sj) {
                 return (Action::Drop, link, 0);
             }
+            // Error bound of the isotropic model of a cluster source, per unit F̃.
+            let g = if self.cfg.anisotropy_refine {
+                ctx.anisotropy(ri, sj)
+            } else {
+                0.0
+            };
             match ok {
-                Oracle::Bf => link.est = ctx.estimate(ri, sj) as f32,
+                Oracle::Bf => link.est = (ctx.estimate(ri, sj) * g.max(1.0)) as f32,
                 Oracle::Error => {
                     let ev = ctx.evaluate(ri, sj, true);
                     rays += ev.rays;
-                    link.est = (ev.kmax - ev.kmin).max(0.0) as f32;
+                    link.est = (ev.kmax - ev.kmin).max(ev.est * g).max(0.0) as f32;
                     eval = Some(ev);
                 }
             }
@@ -534,9 +581,10 @@ impl<'a> Solver<'a> {
                     let se = &el.elems[l.src as usize];
                     if re.kind == Kind::Cluster {
                         let d = (se.centroid - re.centroid).normalize_or_zero();
-                        g.entries.push((d, contrib));
+                        g.entries.push((d, contrib, l.k));
                     } else {
                         g.h += contrib;
+                        g.k_sum += l.k as f64;
                         if se.kind == Kind::Cluster {
                             g.h_cluster += contrib.element_sum();
                         }
@@ -549,6 +597,9 @@ impl<'a> Solver<'a> {
             *h = DVec3::ZERO;
         }
         for v in self.h_cluster.iter_mut() {
+            *v = 0.0;
+        }
+        for v in self.k_sum.iter_mut() {
             *v = 0.0;
         }
         self.entries.clear();
@@ -564,6 +615,7 @@ impl<'a> Solver<'a> {
             } else {
                 self.el.h[id] = g.h;
                 self.h_cluster[id] = g.h_cluster;
+                self.k_sum[id] = g.k_sum;
             }
         }
         self.note_peak();
@@ -579,6 +631,7 @@ impl<'a> Solver<'a> {
         let entries = &self.entries;
         let cl_ranges = &self.cl_ranges;
         let h_cluster = &self.h_cluster;
+        let k_sum = &self.k_sum;
         let reception = self.cfg.cluster_receive;
         let results: Vec<RootResult> = roots
             .clone()
@@ -587,16 +640,18 @@ impl<'a> Solver<'a> {
                 let e = &el.elems[r as usize];
                 let n = e.normal;
                 let mut hc = DVec3::ZERO;
+                let mut kc = 0.0f64;
                 let mut node = tree.surface_node[e.tri as usize];
                 while node != NONE {
                     if (node as usize) < cl_ranges.len() {
                         let (a, b) = cl_ranges[node as usize];
-                        for &(d, h) in &entries[a as usize..b as usize] {
+                        for &(d, h, k) in &entries[a as usize..b as usize] {
                             let w = match reception {
                                 Reception::Oriented => n.dot(d).max(0.0) as f64,
                                 Reception::Isotropic => 0.25,
                             };
                             hc += h * w;
+                            kc += k as f64 * w;
                         }
                     }
                     node = tree.nodes[node as usize].parent;
@@ -605,13 +660,14 @@ impl<'a> Solver<'a> {
                 let area = e.area as f64;
                 out.gathered_cluster = area * hc.element_sum();
                 out.gathered = out.gathered_cluster;
-                let b = push_rec(el, h_cluster, r, hc, &mut out);
+                let b = push_rec(el, (h_cluster, k_sum), r, (hc, kc), &mut out);
                 out.updates.push((r, b));
                 out.incident /= area;
                 out
             })
             .collect();
         let mut pw = super::stats::PowerStats::default();
+        let mut clamped = 0u64;
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
             for (id, b) in res.updates {
@@ -621,6 +677,7 @@ impl<'a> Solver<'a> {
             pw.absorbed += res.absorbed;
             pw.gathered += res.gathered;
             pw.gathered_cluster += res.gathered_cluster;
+            clamped += res.clamped;
             pw.emitted += res.direct;
         }
         for r in roots {
@@ -632,6 +689,7 @@ impl<'a> Solver<'a> {
         pw.radiosity = self.total_power();
         pw.escaping = pw.radiosity - pw.gathered;
         self.stats.power = pw;
+        self.stats.kernel_clamped_leaves = clamped;
     }
 
     /// Cluster radiosity = area average of the children, bottom-up.
@@ -767,14 +825,33 @@ impl<'a> Solver<'a> {
 }
 
 /// Push-pull below surface element `id` with irradiance `down` from above; returns its B.
-fn push_rec(el: &Elements, h_cluster: &[f64], id: u32, down: DVec3, out: &mut RootResult) -> DVec3 {
+///
+/// `down` carries the irradiance and the kernel sum gathered above the element. A leaf's form
+/// factors sum to at most 1; estimated kernels (near-field cluster estimates, sampling noise)
+/// can sum to more, and with reflectances close to 1 the iteration then diverges. A leaf whose
+/// gain `ρ · Σ K` exceeds [`GAIN_MAX`] has its irradiance scaled down to that gain.
+fn push_rec(
+    el: &Elements,
+    (h_cluster, k_sum): (&[f64], &[f64]),
+    id: u32,
+    down: (DVec3, f64),
+    out: &mut RootResult,
+) -> DVec3 {
     let e = &el.elems[id as usize];
     let area = e.area as f64;
     let own = el.h[id as usize];
     out.gathered += area * own.element_sum();
     out.gathered_cluster += area * h_cluster[id as usize];
-    let h = down + own;
+    let mut h = down.0 + own;
+    let k = down.1 + k_sum[id as usize];
     if e.num_children == 0 {
+        let gain = e.rho.max_element() as f64 * k;
+        if gain > GAIN_MAX {
+            out.clamped += 1;
+            let f = GAIN_MAX / gain;
+            out.gathered -= area * (h * (1.0 - f)).element_sum();
+            h *= f;
+        }
         let d = el.direct[id as usize];
         let inc = h + d;
         let rho = e.rho.as_dvec3();
@@ -785,7 +862,7 @@ fn push_rec(el: &Elements, h_cluster: &[f64], id: u32, down: DVec3, out: &mut Ro
     }
     let mut acc = DVec3::ZERO;
     for c in el.children(id) {
-        let b = push_rec(el, h_cluster, c, h, out);
+        let b = push_rec(el, (h_cluster, k_sum), c, (h, k), out);
         out.updates.push((c, b));
         acc += b;
     }

@@ -99,6 +99,13 @@ pub struct SolveStats {
     /// True when nothing emits (no emitter, sun or sky): the solution is zero.
     pub no_light: bool,
     pub warnings: Vec<String>,
+    /// Leaves whose gain `ρ · Σ K` (reflectance times the sum of their link kernels) exceeded
+    /// 0.95 in the last gather: their irradiance was scaled down to that gain.
+    #[serde(default)]
+    pub kernel_clamped_leaves: u64,
+    /// Refinement passes run (refinement is repeated while the radiosity moves).
+    #[serde(default)]
+    pub refinements: u32,
 }
 
 /// Peak resident set of this process in bytes (VmHWM), on Linux.
