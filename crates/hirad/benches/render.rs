@@ -1,6 +1,7 @@
 //! Rendering benchmarks: the z-buffer rasteriser on a 1M-triangle height field at 1024²
 //! (target < 1 s on 2 threads), with and without 2×2 supersampling, and the path tracer on the
-//! Cornell box (path segments per second are printed once before the timed runs).
+//! Cornell box and on `office` (path segments per second, rays per segment and the share of ray
+//! casting are printed once before the timed runs).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use glam::Vec3;
@@ -8,7 +9,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::NoProgress;
 use hirad::ray::RayCaster;
 use hirad::render::{
-    rasterize, render_reference, CameraView, MeshColors, RasterMesh, RasterOptions,
+    rasterize, render_reference, CameraView, MeshColors, PathTracer, RasterMesh, RasterOptions,
     ReferenceOptions,
 };
 use hirad::scene::{Scene, SceneOptions};
@@ -92,6 +93,39 @@ fn bench_pathtrace(c: &mut Criterion) {
     g.finish();
 }
 
+/// The path tracer on `office` (the target scene: ≥ 5 M segments/s on 2 threads), with the
+/// share of ray casting measured by replaying the recorded rays.
+fn bench_pathtrace_office(c: &mut Criterion) {
+    let scene = Scene::load("office", &SceneOptions::default()).unwrap();
+    let tree = ClusterTree::build(&scene, Strategy::Sah, &ClusterConfig::default());
+    let caster = RayCaster::new(&scene, &tree);
+    let mut view = CameraView::from_camera(&scene.default_camera());
+    view.width = 160;
+    view.height = 120;
+    let opts = ReferenceOptions {
+        spp: 2,
+        ..Default::default()
+    };
+    let tracer = PathTracer::new(&scene, &caster, &opts);
+    let (_, stats) = tracer.render(&view, &NoProgress, None).unwrap();
+    let (rep, _, _) = tracer.record_rays(&view, 1).unwrap().replay(&caster);
+    eprintln!(
+        "office 160x120 at 2 spp: {:.2} M segments/s, {:.3} rays per segment, ray casting {:.0}% \
+         (replay: closest {:.2} M/s, shadow {:.2} M/s)",
+        stats.segments_per_second() * 1e-6,
+        (stats.segments + stats.shadow_rays) as f64 / stats.segments as f64,
+        100.0 * rep.ray_seconds_for(&stats) / stats.seconds,
+        rep.closest_per_second() * 1e-6,
+        rep.shadow_per_second() * 1e-6
+    );
+    let mut g = c.benchmark_group("pathtrace");
+    g.sample_size(10);
+    g.bench_function("office_160x120_2spp", |b| {
+        b.iter(|| black_box(tracer.render(&view, &NoProgress, None).unwrap()))
+    });
+    g.finish();
+}
+
 /// The real bathroom scene (379,844 triangles) with flat per-triangle colours ρ, at 1024².
 fn bench_raster_bathroom(c: &mut Criterion) {
     let path = concat!(
@@ -129,6 +163,7 @@ criterion_group!(
     benches,
     bench_raster,
     bench_raster_bathroom,
-    bench_pathtrace
+    bench_pathtrace,
+    bench_pathtrace_office
 );
 criterion_main!(benches);

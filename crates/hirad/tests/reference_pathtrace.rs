@@ -200,3 +200,46 @@ fn same_image_with_one_and_two_threads() {
     );
     assert_ne!(a, c);
 }
+
+#[test]
+fn recorded_rays_are_the_rays_of_the_render() {
+    // `record_rays` (the `hirad reference --bench` replay) logs exactly the queries the render
+    // casts: same counts, camera rays from the eye, and a row stride keeps those rows only.
+    let s = scene("office");
+    let v = view(&s, 24, 18);
+    let opts = ReferenceOptions {
+        spp: 3,
+        seed: 9,
+        ..Default::default()
+    };
+    let tree = ClusterTree::build(&s, Strategy::Sah, &ClusterConfig::default());
+    let caster = RayCaster::new(&s, &tree);
+    let tracer = PathTracer::new(&s, &caster, &opts);
+    let (_, stats) = tracer
+        .render(&v, &hirad::progress::NoProgress, None)
+        .unwrap();
+    let log = tracer.record_rays(&v, 1).unwrap();
+    assert_eq!(log.closest.len() as u64, stats.segments);
+    assert_eq!(log.shadow.len() as u64, stats.shadow_rays);
+    let eye = v.frame().eye;
+    let camera_rays = log.closest.iter().filter(|r| r.origin == eye).count() as u64;
+    assert_eq!(camera_rays, stats.paths);
+    assert!(log
+        .closest
+        .iter()
+        .all(|r| (r.dir.length() - 1.0).abs() < 1e-5));
+    // Shadow rays of the ceiling lights end just short of the light: t ≤ 1 − 1e-4.
+    assert!(log.shadow.iter().all(|r| r.tmax == 1.0 - 1e-4));
+    // Replaying them finds the same number of rays; most camera rays hit the closed office.
+    let (rep, hits, occluded) = log.replay(&caster);
+    assert_eq!(rep.closest_rays, stats.segments);
+    assert_eq!(rep.shadow_rays, stats.shadow_rays);
+    assert!(hits >= stats.paths * 9 / 10 && hits <= stats.segments);
+    assert!(occluded < stats.shadow_rays);
+    // Every third row: the rays of rows 0, 3, 6, … (18 rows → 6 rows), a subset of the log.
+    let third = tracer.record_rays(&v, 3).unwrap();
+    let third_cameras = third.closest.iter().filter(|r| r.origin == eye).count() as u64;
+    assert_eq!(third_cameras, stats.paths / 3);
+    assert_eq!(log.closest[..8], third.closest[..8]);
+    assert!(tracer.record_rays(&v, 0).is_err());
+}

@@ -133,9 +133,61 @@ pub struct ImageArgs {
     /// a path without extension) receives both.
     #[arg(long)]
     pub image: Option<PathBuf>,
-    /// PNG exposure in stops (pixels × 2^exposure before the sRGB transfer and clamping).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub exposure: f32,
+    /// PNG exposure in stops (pixels × 2^exposure before the sRGB transfer and clamping), or
+    /// `auto`: the image's white luminance (99th percentile, as `hirad diff` takes it) maps to 1;
+    /// the stops chosen are logged. Give the same number to images that are to be compared.
+    #[arg(long, default_value = "0", value_parser = parse_exposure, allow_hyphen_values = true)]
+    pub exposure: Exposure,
+}
+
+/// The value of `--exposure`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    /// Stops: pixels × 2^stops.
+    Stops(f32),
+    /// From the image: its white luminance maps to 1.
+    Auto,
+}
+
+impl Default for Exposure {
+    /// 0 stops, as the flag's default.
+    fn default() -> Self {
+        Exposure::Stops(0.0)
+    }
+}
+
+impl Exposure {
+    /// Stops for `img`.
+    pub fn stops(self, img: &Image) -> f32 {
+        match self {
+            Exposure::Stops(s) => s,
+            Exposure::Auto => auto_exposure(img),
+        }
+    }
+}
+
+/// Stops that map the white luminance of `img` (the 99th-percentile luminance, see
+/// [`hirad::metrics::white_luminance`]) to 1; 0 for a black image.
+pub fn auto_exposure(img: &Image) -> f32 {
+    let y = hirad::metrics::white_luminance(img);
+    if y > 0.0 && y.is_finite() {
+        (-y.log2()) as f32
+    } else {
+        0.0
+    }
+}
+
+/// Parse `--exposure`: a finite number of stops or `auto`.
+pub fn parse_exposure(s: &str) -> Result<Exposure, String> {
+    if s.trim().eq_ignore_ascii_case("auto") {
+        return Ok(Exposure::Auto);
+    }
+    s.trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .map(Exposure::Stops)
+        .ok_or_else(|| format!("exposure must be a number of stops or `auto`, got '{s}'"))
 }
 
 impl ImageArgs {
@@ -151,7 +203,12 @@ impl ImageArgs {
             .image
             .clone()
             .unwrap_or_else(|| default_dir.to_path_buf());
-        write_image(img, &target, self.exposure, stem)
+        let stops = self.exposure.stops(img);
+        if self.exposure == Exposure::Auto {
+            tracing::info!("--exposure auto: {stops:.3} stops");
+            eprintln!("exposure auto: {stops:.3} stops");
+        }
+        write_image(img, &target, stops, stem)
     }
 }
 
@@ -257,6 +314,23 @@ mod tests {
         assert_eq!(parse_fov("45").unwrap(), 45.0);
         assert!(parse_fov("180").is_err());
         assert!(parse_fov("0").is_err());
+        assert_eq!(parse_exposure("-2.5").unwrap(), Exposure::Stops(-2.5));
+        assert_eq!(parse_exposure("AUTO").unwrap(), Exposure::Auto);
+        assert!(parse_exposure("inf").is_err());
+        assert!(parse_exposure("bright").is_err());
+    }
+
+    #[test]
+    fn auto_exposure_maps_the_white_to_one() {
+        // Luminance of grey g is g; 99th percentile of 100 pixels 0.01..=1.0 (× 8) is 0.99 × 8.
+        let mut img = Image::new(10, 10, Vec3::ZERO);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            *p = Vec3::splat(8.0 * (i + 1) as f32 / 100.0);
+        }
+        let stops = Exposure::Auto.stops(&img);
+        assert!((stops - (-(8.0f32 * 0.99).log2())).abs() < 1e-4, "{stops}");
+        assert_eq!(Exposure::Stops(1.5).stops(&img), 1.5);
+        assert_eq!(auto_exposure(&Image::new(2, 2, Vec3::ZERO)), 0.0);
     }
 
     #[test]

@@ -18,5 +18,7 @@ pub mod raster;
 
 pub use camera::{CameraFrame, CameraOverrides, CameraView};
 pub use image::{Image, ImageFormat};
-pub use pathtrace::{render_reference, PathTracer, ReferenceOptions, ReferenceStats};
+pub use pathtrace::{
+    render_reference, PathTracer, RayLog, RayReplay, ReferenceOptions, ReferenceStats,
+};
 pub use raster::{rasterize, render_solution, BackFaces, MeshColors, RasterMesh, RasterOptions};
