@@ -1,7 +1,10 @@
 //! `hirad study`: a small study on the built-in Cornell box is resumable (finished units are
-//! skipped, an interrupted run leaves no partial file) and gives the same results as an
-//! uninterrupted run; `--jobs` lists one command per unit; `merge` combines directories.
+//! skipped) and gives the same results as an uninterrupted run; a study on the office killed in
+//! the middle (SIGINT, SIGKILL) leaves only complete files and its rerun skips the finished units
+//! and ends with the uninterrupted run's results; `--jobs` lists one command per unit; `merge`
+//! combines directories.
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant, SystemTime};
@@ -117,39 +120,6 @@ fn study_is_resumable_and_reproducible() {
         full,
         "resumed study differs from the uninterrupted one"
     );
-
-    // A run killed in the middle leaves only complete files; the rerun completes it.
-    let c = tmp.path().join("c");
-    let mut child = hirad(&c, &[]).spawn().unwrap();
-    let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_secs(120) {
-        if files(&c.join("solve"))
-            .iter()
-            .any(|p| p.extension().is_some_and(|e| e == "json"))
-        {
-            break;
-        }
-        if child.try_wait().unwrap().is_some() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    let _ = child.kill();
-    let _ = child.wait();
-    for p in files(&c) {
-        let name = p.file_name().unwrap().to_string_lossy().to_string();
-        if name.ends_with(".json") {
-            let text = std::fs::read_to_string(&p).unwrap();
-            assert!(
-                serde_json::from_str::<serde_json::Value>(&text).is_ok(),
-                "{} is not complete JSON",
-                p.display()
-            );
-        }
-    }
-    let st = hirad(&c, &[]).status().unwrap();
-    assert!(st.success());
-    assert_eq!(solve_results(&c), full);
 }
 
 #[test]
@@ -195,4 +165,310 @@ fn jobs_list_and_merge() {
     assert_eq!(solve_results(&merged).len(), 3);
     let md = std::fs::read_to_string(merged.join("report.md")).unwrap();
     assert!(md.contains("| kdt |") && md.contains("| okdt |"), "{md}");
+    // The merge holds every unit: no job's --only restriction is reported.
+    assert!(!md.contains("Only the units"), "{md}");
+    // The findings across studies: one column per directory, one row per finding.
+    let sum = tmp.path().join("sum");
+    let st = Command::new(env!("CARGO_BIN_EXE_hirad"))
+        .args(["study", "summary", "--out"])
+        .arg(&sum)
+        .arg(&merged)
+        .arg("-q")
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let s = std::fs::read_to_string(sum.join("summary.md")).unwrap();
+    assert!(s.contains("| merged (`cornell`) |"), "{s}");
+    assert_eq!(s.matches("\n| ").count(), 1 + 5 + 1, "{s}");
+    assert!(sum.join("summary.html").is_file());
+    // A directory that is not a study is an error, not an empty column.
+    let st = Command::new(env!("CARGO_BIN_EXE_hirad"))
+        .args(["study", "summary", "--out"])
+        .arg(&sum)
+        .arg(tmp.path().join("nothing"))
+        .arg("-q")
+        .status()
+        .unwrap();
+    assert!(!st.success());
+}
+
+/// The kill test's study: the office (3 viewpoints) with one strategy and three ε; the solves
+/// take a noticeable time (the smallest ε the longest), so a run caught when its first solve is
+/// written still has most of its work ahead.
+const KILL_ARGS: &[&str] = &[
+    "study",
+    "office",
+    "--clustering",
+    "proxi",
+    "--eps-list",
+    "0.2,0.1,0.05",
+    "--pairs",
+    "2000",
+    "--spp",
+    "4",
+    "--size",
+    "64x48",
+    "--repeat",
+    "1",
+    "-q",
+];
+
+fn office(out: &Path, extra: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_hirad"));
+    c.args(KILL_ARGS).arg("--out").arg(out).args(extra);
+    c
+}
+
+/// Keys of the finished units in a study directory (the record files, without runs and config).
+fn unit_keys(dir: &Path) -> BTreeSet<String> {
+    files(dir)
+        .into_iter()
+        .filter_map(|p| {
+            let rel = p
+                .strip_prefix(dir)
+                .ok()?
+                .to_string_lossy()
+                .replace('\\', "/");
+            let key = rel.strip_suffix(".json")?.to_string();
+            ["clusters/", "raybench/", "reference/", "solve/", "volume/"]
+                .iter()
+                .any(|k| key.starts_with(k))
+                .then_some(key)
+        })
+        .collect()
+}
+
+fn is_temp(p: &Path) -> bool {
+    let n = p.file_name().unwrap().to_string_lossy();
+    n.starts_with(".hirad-") && n.ends_with(".tmp")
+}
+
+/// Every file but the temporary ones is complete: JSON parses, images decode. Returns the number
+/// of temporary files.
+fn check_complete(dir: &Path) -> usize {
+    let mut temp = 0;
+    for p in files(dir) {
+        if is_temp(&p) {
+            temp += 1;
+            continue;
+        }
+        match p.extension().and_then(|e| e.to_str()) {
+            Some("json") => {
+                let text = std::fs::read_to_string(&p).unwrap();
+                assert!(
+                    serde_json::from_str::<serde_json::Value>(&text).is_ok(),
+                    "{} is not complete JSON",
+                    p.display()
+                );
+            }
+            Some("png") | Some("exr") => {
+                let img = hirad::render::Image::read(&p)
+                    .unwrap_or_else(|e| panic!("{} does not decode: {e}", p.display()));
+                if !p.starts_with(dir.join("plots")) {
+                    assert_eq!((img.width, img.height), (64, 48), "{}", p.display());
+                }
+            }
+            _ => {}
+        }
+    }
+    temp
+}
+
+/// The run records (`runs/*.json`) of a study directory, oldest first.
+fn run_records(dir: &Path) -> Vec<serde_json::Value> {
+    let mut v: Vec<serde_json::Value> = files(&dir.join("runs"))
+        .into_iter()
+        .filter(|p| !is_temp(p))
+        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap())
+        .collect();
+    v.sort_by(|a, b| {
+        a["started_unix"]
+            .as_f64()
+            .unwrap()
+            .total_cmp(&b["started_unix"].as_f64().unwrap())
+    });
+    v
+}
+
+fn key_set(v: &serde_json::Value) -> BTreeSet<String> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// `results.json` without what depends on the clock or the invocation: timings, run metadata,
+/// the invocations, and the findings (two of them compare build and ray-casting times).
+fn results_without_timings(dir: &Path) -> serde_json::Value {
+    fn strip(v: &mut serde_json::Value) {
+        const TIMING: &[&str] = &[
+            "meta",
+            "build_ms",
+            "query_ms",
+            "mrays_per_s",
+            "solve_s",
+            "seconds",
+            "volume_s",
+            "exact_s",
+            "wall_s",
+            "runs",
+            "findings",
+        ];
+        match v {
+            serde_json::Value::Object(m) => {
+                m.retain(|k, _| !TIMING.contains(&k.as_str()));
+                m.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    strip(&mut v);
+    v
+}
+
+/// `sweep.csv` without its timing column.
+fn sweep_without_timings(dir: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let t = header.iter().position(|h| *h == "solve_s").unwrap();
+    text.lines()
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .filter(|(i, _)| *i != t)
+                .map(|(_, x)| x)
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect()
+}
+
+/// The solve images of a study directory, by relative path.
+fn solve_images(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    files(&dir.join("solve"))
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .map(|p| {
+            (
+                p.strip_prefix(dir).unwrap().to_path_buf(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect()
+}
+
+#[cfg(unix)]
+#[test]
+fn study_killed_midway_resumes_to_the_same_result() {
+    use std::os::unix::process::ExitStatusExt;
+    let tmp = tempfile::tempdir().unwrap();
+    let full_dir = tmp.path().join("full");
+    assert!(office(&full_dir, &["--report"]).status().unwrap().success());
+    let all_units = unit_keys(&full_dir);
+    // 3 references, 1 cluster unit, 1 ray unit, 3 solves.
+    assert_eq!(all_units.len(), 8, "{all_units:?}");
+    let full_runs = run_records(&full_dir);
+    assert_eq!(full_runs.len(), 1);
+    assert_eq!(full_runs[0]["outcome"], "finished");
+    assert_eq!(key_set(&full_runs[0]["computed"]), all_units);
+    let full_results = results_without_timings(&full_dir);
+    assert_eq!(full_results["solves"].as_array().unwrap().len(), 3);
+
+    for (name, signal) in [("sigint", libc::SIGINT), ("sigkill", libc::SIGKILL)] {
+        let dir = tmp.path().join(name);
+        let mut child = office(&dir, &[]).spawn().unwrap();
+        // Poll until the first solve is on disk; the run must still be going.
+        let t0 = Instant::now();
+        loop {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "{name}: the study finished before it could be interrupted"
+            );
+            if unit_keys(&dir).iter().any(|k| k.starts_with("solve/")) {
+                break;
+            }
+            assert!(t0.elapsed() < Duration::from_secs(300), "{name}: no solve");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "{name}: the study finished before it could be interrupted"
+        );
+        // SAFETY: kill(2) on the pid of our own child, which has not been waited for.
+        assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
+        let status = child.wait().unwrap();
+        if signal == libc::SIGINT {
+            assert_eq!(status.code(), Some(130), "{name}: {status:?}");
+        } else {
+            assert_eq!(status.signal(), Some(libc::SIGKILL), "{name}: {status:?}");
+        }
+
+        // Only complete files; a SIGINT lets the current write finish and leaves no temporary
+        // file, a SIGKILL may leave one (removed by the rerun).
+        let temp = check_complete(&dir);
+        if signal == libc::SIGINT {
+            assert_eq!(temp, 0, "{name}: temporary files left");
+        }
+        let done = unit_keys(&dir);
+        assert!(
+            done.iter().any(|k| k.starts_with("solve/")) && done.len() < all_units.len(),
+            "{name}: not interrupted midway: {done:?}"
+        );
+        assert!(done.is_subset(&all_units), "{done:?}");
+        let runs = run_records(&dir);
+        if signal == libc::SIGINT {
+            // The interrupted invocation recorded what it did.
+            assert_eq!(runs.len(), 1, "{name}");
+            assert_eq!(runs[0]["outcome"], "interrupted");
+            assert_eq!(key_set(&runs[0]["computed"]), done);
+        } else {
+            assert!(runs.is_empty(), "{name}: a killed run cannot record itself");
+        }
+        let before: Vec<_> = done
+            .iter()
+            .map(|k| {
+                let p = dir.join(format!("{k}.json"));
+                (
+                    p.clone(),
+                    std::fs::metadata(&p).unwrap().modified().unwrap(),
+                )
+            })
+            .collect();
+
+        // The rerun skips exactly the finished units and computes the others.
+        assert!(office(&dir, &["--report"]).status().unwrap().success());
+        assert_eq!(check_complete(&dir), 0, "{name}: temporary files left");
+        let runs = run_records(&dir);
+        let last = runs.last().unwrap();
+        assert_eq!(last["outcome"], "finished", "{name}");
+        assert_eq!(key_set(&last["skipped"]), done, "{name}");
+        assert_eq!(
+            key_set(&last["computed"]),
+            all_units.difference(&done).cloned().collect(),
+            "{name}"
+        );
+        assert_eq!(last["removed_temp"].as_u64().unwrap() as usize, temp);
+        for (p, t) in &before {
+            assert_eq!(
+                std::fs::metadata(p).unwrap().modified().unwrap(),
+                *t,
+                "{name}: {} was redone",
+                p.display()
+            );
+        }
+        assert_eq!(unit_keys(&dir), all_units, "{name}");
+        // Same results as the uninterrupted run, timings aside, and the same images.
+        assert_eq!(results_without_timings(&dir), full_results, "{name}");
+        assert_eq!(
+            sweep_without_timings(&dir),
+            sweep_without_timings(&full_dir)
+        );
+        assert_eq!(solve_images(&dir), solve_images(&full_dir), "{name}");
+        let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+        assert!(md.contains("## Runs"), "{md}");
+    }
 }

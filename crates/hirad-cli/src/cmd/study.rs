@@ -89,6 +89,16 @@ pub enum Sub {
         #[arg(long)]
         into: Option<PathBuf>,
     },
+    /// The paper's findings across the studies of several scenes (one directory each), as
+    /// `summary.md` and `summary.html`.
+    Summary {
+        /// Study directories, one per scene.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long, default_value = "hirad-out")]
+        out: PathBuf,
+    },
 }
 
 fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
@@ -153,6 +163,33 @@ fn report(out: &std::path::Path, wall_s: f64, quiet: bool) -> anyhow::Result<()>
 }
 
 pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
+    if let Some(Sub::Summary { dirs, out }) = &a.sub {
+        let mut studies = Vec::new();
+        for d in dirs {
+            anyhow::ensure!(
+                d.join("config.json").is_file(),
+                "{} is not a study directory (no config.json)",
+                d.display()
+            );
+            let label = d
+                .file_name()
+                .map(|n| n.to_string_lossy().to_string())
+                .unwrap_or_else(|| d.display().to_string());
+            studies.push((label, run::collect(d)?));
+        }
+        let md = hirad::study::report::cross_scene(&studies);
+        let p = out.join("summary.md");
+        hirad::io::write_bytes_atomic(&p, md.as_bytes())?;
+        let h = out.join("summary.html");
+        hirad::io::write_bytes_atomic(
+            &h,
+            hirad::study::report::html(&md, "hirad studies: findings across scenes").as_bytes(),
+        )?;
+        if !g.quiet {
+            eprintln!("wrote {} and {}", p.display(), h.display());
+        }
+        return Ok(());
+    }
     if let Some(Sub::Merge { dirs, into }) = &a.sub {
         let into = into.clone().unwrap_or_else(|| dirs[0].clone());
         let n = run::merge(&into, dirs)?;
@@ -215,26 +252,40 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let jobs = study.plan()?;
-    let overall = overall_bar(&multi, g.quiet, jobs.len() as u64, "study");
-    let mut refs: Vec<&run::Job> = jobs
-        .iter()
-        .filter(|j| matches!(j, run::Job::Reference(_)))
-        .collect();
-    refs.extend(jobs.iter().filter(|j| !matches!(j, run::Job::Reference(_))));
-    for j in refs {
+    if study.removed_temp > 0 && !g.quiet {
+        eprintln!(
+            "removed {} temporary file(s) left by a killed run",
+            study.removed_temp
+        );
+    }
+    let overall = overall_bar(&multi, g.quiet, 0, "study");
+    let r = study.run_all(&mut |j, i, n| {
+        overall.set_length(n as u64);
+        overall.set_position(i as u64);
         overall.set_message(j.key());
-        let r = study.run_job(j);
-        overall.inc(1);
-        if let Err(e) = r {
+    });
+    let rec = match r {
+        Ok(rec) => rec,
+        Err(e) => {
             overall.abandon();
             if matches!(e, hirad::Error::Interrupted) {
-                eprintln!("stopped; finished units are on disk in {}", a.out.display());
+                eprintln!(
+                    "stopped; finished units are on disk in {}; rerun the same command to resume",
+                    a.out.display()
+                );
+                std::process::exit(130);
             }
             return Err(e.into());
         }
-    }
+    };
     overall.finish_and_clear();
+    if !g.quiet {
+        eprintln!(
+            "{} units computed, {} done earlier and skipped",
+            rec.computed.len(),
+            rec.skipped.len()
+        );
+    }
     let wall = t0.elapsed().as_secs_f64();
     if a.report || g.json {
         report(&a.out, wall, g.quiet)?;

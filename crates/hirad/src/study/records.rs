@@ -59,9 +59,16 @@ impl RunMeta {
     }
 }
 
-/// Commit of the source tree this binary was built from (asked of git at run time, since the
-/// binary usually runs next to its checkout), or "unknown".
+/// Commit of the source tree this binary was built from: `HIRAD_GIT_COMMIT` when set (a binary
+/// built outside a checkout), else asked of git at run time, since the binary usually runs next
+/// to its checkout; "unknown" when neither answers.
 pub fn git_commit() -> String {
+    if let Some(c) = std::env::var("HIRAD_GIT_COMMIT")
+        .ok()
+        .filter(|c| !c.trim().is_empty())
+    {
+        return c.trim().to_string();
+    }
     std::process::Command::new("git")
         .args([
             "-C",
@@ -148,4 +155,24 @@ pub struct ReferenceRecord {
     pub method: String,
     pub seconds: f64,
     pub image: String,
+}
+
+/// One invocation of a study on a directory: what it computed, what it found done and skipped,
+/// and how it ended. A study that was interrupted and resumed has several; their wall times add
+/// up to the study's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    pub meta: RunMeta,
+    /// Unix time the invocation started, seconds.
+    pub started_unix: f64,
+    /// Wall time of the invocation, seconds.
+    pub wall_s: f64,
+    /// Keys of the units computed by this invocation, in order.
+    pub computed: Vec<String>,
+    /// Keys of the units found on disk and skipped.
+    pub skipped: Vec<String>,
+    /// Temporary files of an earlier, killed invocation that were removed at start.
+    pub removed_temp: usize,
+    /// `finished`, `interrupted` or `failed: <message>`.
+    pub outcome: String,
 }

@@ -1,7 +1,7 @@
 //! The study's report (`experiments.md` §6): Markdown and HTML with the tables and plots of
 //! §1–5 and, for each of the paper's findings, what we measured and whether it was reproduced.
 
-use super::records::{ClusterRecord, RayRecord, RunMeta, SolveRecord};
+use super::records::{ClusterRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
 use super::score::Monotonicity;
 use crate::cluster::Strategy;
 use serde::{Deserialize, Serialize};
@@ -29,8 +29,24 @@ pub struct ReportData {
     pub volume: Vec<VolumeRow>,
     /// Plot and image files (relative paths) by section name.
     pub figures: BTreeMap<String, Vec<String>>,
-    /// Wall time of the whole study, seconds (of this run; cached work not counted).
+    /// Wall time of this invocation, seconds (cached work not counted).
     pub wall_s: f64,
+    /// Every invocation on the study's directory (a resumed study has several), oldest first.
+    pub runs: Vec<RunRecord>,
+    /// Unit-key prefixes the study was restricted to (`--only`; empty: every unit).
+    pub only: Vec<String>,
+}
+
+impl ReportData {
+    /// Wall time of the study: the sum over its invocations, or this invocation's when none
+    /// was recorded.
+    pub fn total_wall_s(&self) -> f64 {
+        if self.runs.is_empty() {
+            self.wall_s
+        } else {
+            self.runs.iter().map(|r| r.wall_s).sum()
+        }
+    }
 }
 
 /// Verdict on one of the paper's findings.
@@ -152,7 +168,7 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
                 .unwrap();
             let desc = rows
                 .iter()
-                .map(|r| format!("{} {:.2}", r.strategy, r.mrays_per_s))
+                .map(|r| format!("{} {:.3}", r.strategy, r.mrays_per_s))
                 .collect::<Vec<_>>()
                 .join(", ");
             (
@@ -260,9 +276,30 @@ pub fn markdown(d: &ReportData) -> String {
     let _ = writeln!(md, "# hirad study: `{}`\n", m.scene);
     let _ = writeln!(
         md,
-        "hirad {} (commit {}), {} threads on {} ({} cores, {:.0} GB). Wall time of this run: {:.1} s.\n",
-        m.hirad_version, m.git_commit, m.threads, m.machine, m.cores, m.memory_gb, d.wall_s
+        "hirad {} (commit {}), {} threads on {} ({} cores, {:.0} GB). Wall time of the study: {}.\n",
+        m.hirad_version,
+        m.git_commit,
+        m.threads,
+        m.machine,
+        m.cores,
+        m.memory_gb,
+        match (d.total_wall_s(), d.runs.len()) {
+            (w, _) if w <= 0.0 => "not recorded (merged results)".to_string(),
+            (w, n) if n > 1 => format!("{w:.1} s over {n} invocations (see Runs)"),
+            (w, _) => format!("{w:.1} s"),
+        }
     );
+    if !d.only.is_empty() {
+        let _ = writeln!(
+            md,
+            "Only the units whose key starts with one of these were run: {}.\n",
+            d.only
+                .iter()
+                .map(|k| format!("`{k}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let _ = writeln!(md, "## Findings of the paper, and ours\n");
     let _ = writeln!(md, "| paper | ours | reproduced |\n|---|---|---|");
     for f in findings(d) {
@@ -387,6 +424,89 @@ pub fn markdown(d: &ReportData) -> String {
         }
         fig(&mut md, d, "volume");
     }
+    if !d.runs.is_empty() {
+        let _ = writeln!(md, "## Runs\n");
+        let _ = writeln!(
+            md,
+            "Each invocation on this directory; a rerun skips the units already on disk.\n"
+        );
+        let _ = writeln!(
+            md,
+            "| # | started (unix s) | commit | wall s | computed | skipped | stale temp files removed | outcome |\n|---|---|---|---|---|---|---|---|"
+        );
+        for (i, r) in d.runs.iter().enumerate() {
+            let _ = writeln!(
+                md,
+                "| {} | {:.0} | {} | {:.1} | {} | {} | {} | {} |",
+                i + 1,
+                r.started_unix,
+                r.meta.git_commit,
+                r.wall_s,
+                r.computed.len(),
+                r.skipped.len(),
+                r.removed_temp,
+                r.outcome
+            );
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The paper's findings across several studies (one per scene: a label, such as the study's
+/// directory, and its [`ReportData`] from [`super::run::collect`]): a table of verdicts, study by
+/// study, then what we measured.
+pub fn cross_scene(studies: &[(String, ReportData)]) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# hirad studies: the paper's findings across scenes\n");
+    let names: Vec<String> = studies
+        .iter()
+        .map(|(l, d)| format!("{l} (`{}`)", d.meta.scene))
+        .collect();
+    let _ = writeln!(
+        md,
+        "| finding of the paper | {} |\n|---|{}",
+        names.join(" | "),
+        "---|".repeat(studies.len())
+    );
+    let all: Vec<Vec<Finding>> = studies.iter().map(|(_, d)| findings(d)).collect();
+    let n = all.iter().map(Vec::len).max().unwrap_or(0);
+    for i in 0..n {
+        let paper = all
+            .iter()
+            .find_map(|f| f.get(i))
+            .map(|f| f.paper.clone())
+            .unwrap_or_default();
+        let cells: Vec<&str> = all
+            .iter()
+            .map(|f| verdict(f.get(i).and_then(|f| f.reproduced)))
+            .collect();
+        let _ = writeln!(md, "| {paper} | {} |", cells.join(" | "));
+    }
+    let walls: Vec<String> = studies
+        .iter()
+        .map(|(_, d)| {
+            let w = d.total_wall_s();
+            if w > 0.0 {
+                format!("{w:.0} s ({} invocation(s))", d.runs.len().max(1))
+            } else {
+                "not recorded".into()
+            }
+        })
+        .collect();
+    let _ = writeln!(md, "| wall time of the study | {} |", walls.join(" | "));
+    let _ = writeln!(md, "\n## What we measured\n");
+    for i in 0..n {
+        if let Some(f) = all.iter().find_map(|f| f.get(i)) {
+            let _ = writeln!(md, "**{}**\n", f.paper);
+        }
+        for ((l, _), f) in studies.iter().zip(&all) {
+            if let Some(f) = f.get(i) {
+                let _ = writeln!(md, "- {l}: {} — {}", f.ours, verdict(f.reproduced));
+            }
+        }
+        md.push('\n');
+    }
     md
 }
 
@@ -482,5 +602,14 @@ mod tests {
         assert!(md.contains("| 50.0 |"), "{md}");
         let h = html(&md, "t");
         assert!(h.contains("<table>") && h.contains("<td>okdt-p</td>"));
+        // Across scenes: one column per study, one row per finding.
+        let mut soup = ReportData::default();
+        soup.meta.scene = "soup".into();
+        let mut d = d;
+        d.meta.scene = "office".into();
+        let x = cross_scene(&[("a".into(), d), ("b".into(), soup)]);
+        assert!(x.contains("| a (`office`) | b (`soup`) |"), "{x}");
+        assert!(x.contains("(§4.4, Fig. 6) | yes | not measured |"), "{x}");
+        assert_eq!(x.matches("\n| ").count(), 1 + 5 + 1, "{x}");
     }
 }

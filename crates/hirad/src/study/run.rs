@@ -19,7 +19,7 @@
 //! cluster links are recorded so the series can be checked against the paper's 30–100% range.
 
 use super::plot::{strategy_color, BarPlot, LinePlot, Series};
-use super::records::{ClusterRecord, RayRecord, ReferenceRecord, RunMeta, SolveRecord};
+use super::records::{ClusterRecord, RayRecord, ReferenceRecord, RunMeta, RunRecord, SolveRecord};
 use super::report::{self, ReportData, VolumeRow};
 use super::store::Store;
 use crate::cluster::{stats::ClusterStats, ClusterConfig, ClusterTree, Prims, Strategy};
@@ -201,21 +201,32 @@ pub struct Calibration {
     pub eps_lo: f64,
 }
 
-/// Pick the sweep's ends from probes `(ε, %cluster, s)` sorted by decreasing ε.
+/// Pick the sweep's ends from probes `(ε, %cluster, s)` sorted by decreasing ε, so that the
+/// sweep spans the paper's 30–100% of energy through cluster links: `eps_hi` is the smallest
+/// probed ε that still sends ≥ 95% through clusters (the first probe when none does), `eps_lo`
+/// the smallest probed ε below it with ≥ 30%. When the share drops from ≥ 95% to < 30% between
+/// two probes (an abrupt transition, as under a sun), `eps_lo` is the first probe below 30%, so
+/// the sweep crosses the whole band; when no probe goes below 30%, `eps_lo` = `eps_hi` / 8.
 pub fn pick_range(probes: &[(f64, f64, f64)]) -> (f64, f64) {
     let hi = probes
         .iter()
-        .find(|p| p.1 <= 95.0)
-        .map(|p| p.0)
-        .or_else(|| probes.last().map(|p| p.0))
-        .unwrap_or(0.2);
-    let lo = probes
-        .iter()
-        .filter(|p| p.1 >= 30.0 && p.0 <= hi)
+        .filter(|p| p.1 >= 95.0)
         .map(|p| p.0)
         .fold(f64::NAN, f64::min);
-    let lo = if lo.is_finite() && lo < hi {
+    let hi = if hi.is_finite() {
+        hi
+    } else {
+        probes.first().map(|p| p.0).unwrap_or(0.2)
+    };
+    let lo = probes
+        .iter()
+        .filter(|p| p.1 >= 30.0 && p.0 < hi)
+        .map(|p| p.0)
+        .fold(f64::NAN, f64::min);
+    let lo = if lo.is_finite() {
         lo
+    } else if let Some(p) = probes.iter().find(|p| p.0 < hi && p.1 < 30.0) {
+        p.0
     } else {
         hi / 8.0
     };
@@ -262,8 +273,29 @@ pub struct Study<'a> {
     pub views: Vec<(String, CameraView)>,
     pub store: Store,
     pub meta: RunMeta,
+    /// Temporary files left by an earlier, killed invocation and removed by [`Study::new`].
+    pub removed_temp: usize,
     progress: &'a dyn Progress,
     cancel: &'a AtomicBool,
+}
+
+/// Remove the temporary files (`.hirad-*.tmp`, see [`crate::io::write_atomic`]) that a killed
+/// invocation can leave below `dir`; returns how many. Only one study runs in a directory at a
+/// time, so none of them belongs to a live writer.
+pub fn remove_stale_temp(dir: &std::path::Path) -> Result<usize> {
+    let mut n = 0;
+    for p in super::store::walk_files(dir, &[]) {
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        if name.starts_with(".hirad-") && name.ends_with(".tmp") {
+            std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+            tracing::info!("removed {} left by an interrupted run", p.display());
+            n += 1;
+        }
+    }
+    Ok(n)
 }
 
 /// PNG exposure (stops) that maps the image's white (99th-percentile luminance, as the CIELUV
@@ -305,6 +337,7 @@ impl<'a> Study<'a> {
         let scene = Scene::load(&cfg.scene, &SceneOptions::default())?;
         let prims = Prims::from_scene(&scene);
         let views = viewpoints(&scene, &cfg)?;
+        let removed_temp = remove_stale_temp(&cfg.out)?;
         let store = Store::new(&cfg.out);
         let meta = RunMeta {
             scene_objects: scene.objects.len(),
@@ -318,9 +351,17 @@ impl<'a> Study<'a> {
             views,
             store,
             meta,
+            removed_temp,
             progress,
             cancel,
         })
+    }
+
+    /// Store the record of one invocation (key `runs/<start ms>-<pid>`); returns the key.
+    pub fn record_run(&self, rec: &RunRecord) -> Result<String> {
+        let key = format!("runs/{:.0}-{}", rec.started_unix * 1e3, std::process::id());
+        self.store.put(&key, rec)?;
+        Ok(key)
     }
 
     /// Probe solves choosing the sweep's ε range (stored as unit `calibrate`).
@@ -401,15 +442,22 @@ impl<'a> Study<'a> {
         ClusterTree::build_prims(&self.prims, s, &self.cfg.cluster)
     }
 
-    /// Run one unit (or load it when it is on disk).
-    pub fn run_job(&self, job: &Job) -> Result<()> {
+    /// Run one unit unless it is on disk; true when it was computed, false when skipped.
+    pub fn run_job(&self, job: &Job) -> Result<bool> {
         self.check_cancel()?;
         let key = job.key();
         if self.store.has(&key) {
             tracing::info!("{key}: done earlier, skipped");
-            return Ok(());
+            return Ok(false);
         }
         self.progress.message(&key);
+        self.compute(job, &key)?;
+        tracing::info!("{key}: done");
+        Ok(true)
+    }
+
+    fn compute(&self, job: &Job, key: &str) -> Result<()> {
+        let key = key.to_string();
         match job {
             Job::Clusters(s) => {
                 let r = self.cluster_record(*s)?;
@@ -565,8 +613,9 @@ impl<'a> Study<'a> {
         for ((name, _), (_, img)) in self.views.iter().zip(&imgs) {
             // A job run alone (`--jobs`, `--only`) makes the reference it needs; the path
             // tracer is deterministic, so every machine makes the same one.
-            if !self.store.has(&Job::Reference(name.clone()).key()) {
-                self.run_job(&Job::Reference(name.clone()))?;
+            let job = Job::Reference(name.clone());
+            if !self.store.has(&job.key()) {
+                self.run_job(&job)?;
             }
             let reference = Image::read(&self.reference_path(name))?;
             errors.push(crate::metrics::compare(img, &reference)?.rms_delta_e);
@@ -614,17 +663,44 @@ impl<'a> Study<'a> {
         })
     }
 
-    /// Run every planned unit that is not done yet; the overall progress bar counts units.
-    pub fn run_all(&self) -> Result<()> {
-        let jobs = self.plan()?;
-        // References first: solves compare against them.
-        let (refs, rest): (Vec<Job>, Vec<Job>) = jobs
-            .into_iter()
-            .partition(|j| matches!(j, Job::Reference(_)));
-        for j in refs.iter().chain(rest.iter()) {
-            self.run_job(j)?;
-        }
-        Ok(())
+    /// Run every planned unit that is not done yet, references first (solves compare against
+    /// them), and store the invocation's [`RunRecord`], also when it was interrupted or failed.
+    /// `on_unit(job, i, n)` is called before unit `i` of `n` (for an overall progress bar).
+    pub fn run_all(&self, on_unit: &mut dyn FnMut(&Job, usize, usize)) -> Result<RunRecord> {
+        let started = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        let t0 = Instant::now();
+        let mut rec = RunRecord {
+            meta: self.meta.clone(),
+            started_unix: started,
+            removed_temp: self.removed_temp,
+            ..Default::default()
+        };
+        let r = self.plan().and_then(|jobs| {
+            let (refs, rest): (Vec<Job>, Vec<Job>) = jobs
+                .into_iter()
+                .partition(|j| matches!(j, Job::Reference(_)));
+            let n = refs.len() + rest.len();
+            for (i, j) in refs.iter().chain(rest.iter()).enumerate() {
+                on_unit(j, i, n);
+                if self.run_job(j)? {
+                    rec.computed.push(j.key());
+                } else {
+                    rec.skipped.push(j.key());
+                }
+            }
+            Ok(())
+        });
+        rec.wall_s = t0.elapsed().as_secs_f64();
+        rec.outcome = match &r {
+            Ok(()) => "finished".into(),
+            Err(Error::Interrupted) => "interrupted".into(),
+            Err(e) => format!("failed: {e}"),
+        };
+        self.record_run(&rec)?;
+        r.map(|()| rec)
     }
 }
 
@@ -634,6 +710,7 @@ pub fn collect(out: &std::path::Path) -> Result<ReportData> {
     let cfg: StudyConfig = store.get("config").unwrap_or_default();
     let mut d = ReportData {
         meta: RunMeta::current(&cfg.scene),
+        only: cfg.only.clone(),
         ..Default::default()
     };
     let order = |s: Strategy| Strategy::ALL.iter().position(|&x| x == s).unwrap_or(99);
@@ -661,6 +738,13 @@ pub fn collect(out: &std::path::Path) -> Result<ReportData> {
         }
     }
     d.volume.sort_by_key(|r| order(r.strategy));
+    for k in store.keys("runs") {
+        if let Some(r) = store.get::<RunRecord>(&k) {
+            d.runs.push(r);
+        }
+    }
+    d.runs
+        .sort_by(|a, b| a.started_unix.total_cmp(&b.started_unix));
     Ok(d)
 }
 
@@ -673,17 +757,25 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
         let bars = |title: &str, y: &str, f: &dyn Fn(&ClusterRecord) -> f64| BarPlot {
             title: title.into(),
             y_label: y.into(),
+            log_y: false,
             bars: d
                 .clusters
                 .iter()
                 .map(|r| (r.strategy.to_string(), strategy_color(r.strategy), f(r)))
                 .collect(),
         };
-        let f1 = bars("Clusters per strategy", "clusters", &|r| r.clusters as f64)
-            .write(&plots.join("clusters"))?;
-        let f2 = bars("Children per cluster", "children / cluster", &|r| {
-            r.avg_children
-        })
+        let scene = &d.meta.scene;
+        let f1 = bars(
+            &format!("Clusters per strategy ({scene})"),
+            "clusters",
+            &|r| r.clusters as f64,
+        )
+        .write(&plots.join("clusters"))?;
+        let f2 = bars(
+            &format!("Children per cluster ({scene})"),
+            "children / cluster (mean over clusters)",
+            &|r| r.avg_children,
+        )
         .write(&plots.join("children"))?;
         d.figures.insert("clusters".into(), rel(out, &f1));
         d.figures.insert("children".into(), rel(out, &f2));
@@ -691,9 +783,22 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
         files.extend(f2);
     }
     if !d.rays.is_empty() {
+        // Log scale when the strategies differ by orders of magnitude (kdt on large scenes).
+        let q: Vec<f64> = d
+            .rays
+            .iter()
+            .map(|r| r.query_ms)
+            .filter(|v| *v > 0.0)
+            .collect();
+        let spread =
+            q.iter().cloned().fold(0.0, f64::max) / q.iter().cloned().fold(f64::INFINITY, f64::min);
         let f = BarPlot {
-            title: "Ray-casting test: query time".into(),
+            title: format!(
+                "Ray-casting test: {} segments ({})",
+                d.rays[0].pairs, d.meta.scene
+            ),
             y_label: "query time (ms)".into(),
+            log_y: spread > 30.0,
             bars: d
                 .rays
                 .iter()
@@ -796,6 +901,7 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
         &serde_json::json!({
             "meta": d.meta, "clusters": d.clusters, "raybench": d.rays, "solves": d.solves,
             "volume": d.volume, "findings": report::findings(d),
+            "wall_s": d.total_wall_s(), "runs": d.runs,
             "monotonicity": report::monotonicity(&d.solves).into_iter().map(|(s, m)| (s.to_string(), m)).collect::<std::collections::BTreeMap<_, _>>(),
         }),
     )?;
@@ -835,7 +941,14 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
     let mut copied = 0;
     for d in dirs {
         let src = Store::new(d);
-        for prefix in ["clusters", "raybench", "reference", "solve", "volume"] {
+        for prefix in [
+            "clusters",
+            "raybench",
+            "reference",
+            "solve",
+            "volume",
+            "runs",
+        ] {
             for k in src.keys(prefix) {
                 let from = src.path(&k);
                 let to = Store::new(into).path(&k);
@@ -849,9 +962,13 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
         }
         // Images and references next to the records.
         copy_tree(d, into, &["png", "exr", "svg"])?;
-        if !into.join("config.json").exists() && d.join("config.json").exists() {
-            let bytes = std::fs::read(d.join("config.json")).map_err(|e| Error::io(d, e))?;
-            crate::io::write_bytes_atomic(&into.join("config.json"), &bytes)?;
+        if !into.join("config.json").exists() {
+            // A job's configuration, without the job's `--only`: the merge holds every unit.
+            if let Some(mut cfg) = src.get::<StudyConfig>("config") {
+                cfg.only.clear();
+                cfg.out = into.to_path_buf();
+                Store::new(into).put("config", &cfg)?;
+            }
         }
     }
     Ok(copied)
@@ -913,9 +1030,21 @@ mod tests {
             (0.125, 45.0, 0.4),
             (0.0625, 20.0, 0.9),
         ];
-        assert_eq!(pick_range(&probes), (0.25, 0.125));
+        assert_eq!(pick_range(&probes), (0.5, 0.125));
         // Never below 30%: the last probe becomes eps_hi and the range spans 8×.
         let probes = [(1.0, 100.0, 0.1), (0.5, 99.0, 0.1)];
         assert_eq!(pick_range(&probes), (0.5, 0.0625));
+        // An abrupt drop (the copper beech under a sun: 99.9% at 0.25, 20% at 0.125): the sweep
+        // runs from the last probe above 95% to the first below 30%, across the band.
+        let probes = [
+            (1.0, 99.9, 6.8),
+            (0.5, 99.9, 8.2),
+            (0.25, 99.9, 9.6),
+            (0.125, 20.2, 38.3),
+        ];
+        assert_eq!(pick_range(&probes), (0.25, 0.125));
+        // Never above 95%: the sweep starts at the first probe.
+        let probes = [(1.0, 80.0, 0.1), (0.5, 50.0, 0.1), (0.25, 10.0, 0.1)];
+        assert_eq!(pick_range(&probes), (1.0, 0.5));
     }
 }

@@ -80,9 +80,10 @@ impl Store {
         }
     }
 
-    /// True when `key` is finished.
+    /// True when `key` is finished: its file exists and is complete JSON (a file that does not
+    /// parse is redone, not skipped).
     pub fn has(&self, key: &str) -> bool {
-        self.path(key).is_file()
+        self.get::<serde_json::Value>(key).is_some()
     }
 
     /// Store `value` under `key` atomically.
@@ -186,6 +187,7 @@ mod tests {
         // A corrupt file counts as missing.
         std::fs::write(s.path("bad"), "{not json").unwrap();
         assert_eq!(s.get::<f64>("bad"), None);
+        assert!(!s.has("bad") && s.has("solve/kdt/eps-2.0000e-1"));
         // No temporary files are left behind.
         let leftovers = std::fs::read_dir(dir.path().join("solve/okdt-p"))
             .unwrap()
