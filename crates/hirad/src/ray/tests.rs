@@ -191,3 +191,45 @@ fn stack_spills_to_heap_in_order() {
     let popped: Vec<u32> = std::iter::from_fn(|| s.pop()).collect();
     assert_eq!(popped, (0..10).rev().collect::<Vec<_>>());
 }
+
+#[test]
+fn group_test_equals_scalar_slab() {
+    // The 4-wide box test of a group gives the scalar slab test's answer and entry distance
+    // in every lane, including rays with zero direction components (both signs) whose origin
+    // lies in a box plane (0·∞ = NaN), and never hits an empty lane.
+    let mut g = crate::rng::SplitMix64::new(4);
+    let grid = |g: &mut crate::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
+    let mut hits = 0;
+    for i in 0..20000 {
+        let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+        let mut d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
+        if i % 3 == 0 {
+            d[(i / 3) % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        let r = RayPre::new(o, d).unwrap();
+        let r4 = layout::Ray4::new(&r);
+        let mut grp = layout::Group::default();
+        let mut boxes = Vec::new();
+        for lane in 0..3 {
+            let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+            let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+            let (lo, hi) = (a.min(b), a.max(b));
+            for k in 0..3 {
+                grp.b[k][lane] = lo[k];
+                grp.b[k + 3][lane] = hi[k];
+            }
+            boxes.push([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]);
+        }
+        let (mask, tn) = r4.test(&grp, 0.0, 10.0);
+        assert_eq!(mask & 8, 0, "empty lane hit");
+        for (lane, b) in boxes.iter().enumerate() {
+            let s = r.slab(b, 0.0, 10.0);
+            assert_eq!(mask >> lane & 1 == 1, s.is_some(), "{o} {d} {b:?}");
+            if let Some(t) = s {
+                assert_eq!(tn[lane], t, "{o} {d} {b:?}");
+                hits += 1;
+            }
+        }
+    }
+    assert!(hits > 6000, "{hits}");
+}

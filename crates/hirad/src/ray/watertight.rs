@@ -34,12 +34,6 @@ pub struct RayPre {
     pub sx: f32,
     pub sy: f32,
     pub sz: f32,
-    /// Origin as a SIMD vector, lane 3 = 0.
-    pub o4: Vec4,
-    /// Reciprocal direction as a SIMD vector, lane 3 = 1.
-    pub inv4: Vec4,
-    /// Every reciprocal is finite: the SIMD slab test cannot produce NaN.
-    pub finite: bool,
 }
 
 impl RayPre {
@@ -65,10 +59,12 @@ impl RayPre {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let sx = d[kx] / d[kz];
-        let sy = d[ky] / d[kz];
-        let sz = 1.0 / d[kz];
-        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        // One 4-wide division for the shear constants and one for the reciprocals: the same
+        // correctly rounded quotients as scalar divisions (±∞ with the sign of a zero).
+        let q = Vec4::new(d[kx], d[ky], 1.0, 1.0) / Vec4::splat(d[kz]);
+        let (sx, sy, sz) = (q.x, q.y, q.z);
+        let r = Vec4::ONE / Vec4::new(d[0], d[1], d[2], 1.0);
+        let inv = [r.x, r.y, r.z];
         let mut near = [0usize; 3];
         let mut far = [0usize; 3];
         for a in 0..3 {
@@ -81,11 +77,7 @@ impl RayPre {
                 far[a] = a + 3;
             }
         }
-        let finite = inv.iter().all(|x| x.is_finite());
         Some(RayPre {
-            o4: Vec4::new(origin.x, origin.y, origin.z, 0.0),
-            inv4: Vec4::new(inv[0], inv[1], inv[2], 1.0),
-            finite,
             o: origin.to_array(),
             d,
             inv,
@@ -119,22 +111,6 @@ impl RayPre {
             tn = if t0 > tn { t0 } else { tn };
             tf = if t1 < tf { t1 } else { tf };
         }
-        (tn <= tf * BOX_SLACK).then_some(tn)
-    }
-
-    /// [`RayPre::slab`] for a box given as `lo = [minx, miny, minz, −∞]`,
-    /// `hi = [maxx, maxy, maxz, +∞]` (lane 3 is neutral). Uses 4-wide SIMD when every
-    /// reciprocal direction component is finite (then no `0·∞` can occur), the scalar NaN-aware
-    /// test otherwise. Same results as [`RayPre::slab`].
-    #[inline(always)]
-    pub fn slab4(&self, lo: &[f32; 4], hi: &[f32; 4], tmin: f32, tmax: f32) -> Option<f32> {
-        if !self.finite {
-            return self.slab(&[lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]], tmin, tmax);
-        }
-        let t0 = (Vec4::from_array(*lo) - self.o4) * self.inv4;
-        let t1 = (Vec4::from_array(*hi) - self.o4) * self.inv4;
-        let tn = t0.min(t1).max_element().max(tmin);
-        let tf = t0.max(t1).min_element().min(tmax);
         (tn <= tf * BOX_SLACK).then_some(tn)
     }
 }
@@ -365,34 +341,5 @@ mod tests {
         let r = RayPre::new(Vec3::new(0.5, 1.0, 0.5), -Vec3::Y).unwrap();
         assert_eq!(r.slab(&b, 0.0, 10.0), Some(1.0));
         assert!(r.slab(&b, 0.0, 0.5).is_none());
-    }
-
-    #[test]
-    fn slab4_equals_scalar_slab() {
-        let mut g = crate::rng::SplitMix64::new(4);
-        let grid = |g: &mut crate::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
-        let mut hits = 0;
-        for i in 0..20000 {
-            let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let mut d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
-            // Zero components (both signs) in a third of the rays.
-            if i % 3 == 0 {
-                d[(i / 3) % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
-            }
-            let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let (lo, hi) = (a.min(b), a.max(b));
-            let r = RayPre::new(o, d).unwrap();
-            let s6 = r.slab(&[lo.x, lo.y, lo.z, hi.x, hi.y, hi.z], 0.0, 10.0);
-            let s4 = r.slab4(
-                &[lo.x, lo.y, lo.z, f32::NEG_INFINITY],
-                &[hi.x, hi.y, hi.z, f32::INFINITY],
-                0.0,
-                10.0,
-            );
-            assert_eq!(s4, s6, "{o} {d} {lo} {hi}");
-            hits += s6.is_some() as u32;
-        }
-        assert!(hits > 2000, "{hits}");
     }
 }
