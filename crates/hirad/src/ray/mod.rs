@@ -249,7 +249,7 @@ impl Lane {
                 return Step::Overflow;
             }
             let mut stack = LaneStack(self);
-            push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+            push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
         }
         Step::Continue
     }
@@ -579,7 +579,7 @@ impl<'a> RayCaster<'a> {
                     stats.boxes += g.lanes as u64;
                 }
                 let (mask, tn) = r4.test(g, tmin, tmax);
-                push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
         }
         false
@@ -627,7 +627,7 @@ impl<'a> RayCaster<'a> {
                     stats.boxes += g.lanes as u64;
                 }
                 let (mask, tn) = r4.test(g, tmin, best_t);
-                push_sorted::<_, true>(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
+                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
                     node: c,
                     t,
                 });
@@ -668,7 +668,7 @@ impl<'a> RayCaster<'a> {
 /// Push the hit lanes (`mask`) of one group so that the nearest entry distance is on top
 /// (visited first); ties keep the tree's child order.
 #[inline(always)]
-fn push_sorted<T: Copy, const PREFETCH: bool>(
+fn push_sorted<T: Copy>(
     stack: &mut impl PushStack<T>,
     l: &Layout,
     mask: u32,
@@ -680,9 +680,7 @@ fn push_sorted<T: Copy, const PREFETCH: bool>(
         0 => {}
         1 => {
             let i = mask.trailing_zeros() as usize;
-            if PREFETCH {
-                l.prefetch(child[i]);
-            }
+            l.prefetch(child[i]);
             stack.push(entry(child[i], tn[i]));
         }
         _ => {
@@ -703,9 +701,7 @@ fn push_sorted<T: Copy, const PREFETCH: bool>(
                 k += 1;
             }
             for &i in &idx[..k] {
-                if PREFETCH {
-                    l.prefetch(child[i]);
-                }
+                l.prefetch(child[i]);
                 stack.push(entry(child[i], tn[i]));
             }
         }

@@ -33,7 +33,6 @@ pub struct RayPre {
     /// Shear constants.
     pub sx: f32,
     pub sy: f32,
-    pub sz: f32,
 }
 
 impl RayPre {
@@ -62,7 +61,7 @@ impl RayPre {
         // One 4-wide division for the shear constants and one for the reciprocals: the same
         // correctly rounded quotients as scalar divisions (±∞ with the sign of a zero).
         let q = Vec4::new(d[kx], d[ky], 1.0, 1.0) / Vec4::splat(d[kz]);
-        let (sx, sy, sz) = (q.x, q.y, q.z);
+        let (sx, sy) = (q.x, q.y);
         let r = Vec4::ONE / Vec4::new(d[0], d[1], d[2], 1.0);
         let inv = [r.x, r.y, r.z];
         let mut near = [0usize; 3];
@@ -88,7 +87,6 @@ impl RayPre {
             kz,
             sx,
             sy,
-            sz,
         })
     }
 

@@ -149,16 +149,10 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
     }
     // Ray casting.
     {
-        let paper = [
-            Strategy::Kdt,
-            Strategy::Obt,
-            Strategy::Okdt,
-            Strategy::OkdtP,
-            Strategy::TfOct,
-            Strategy::Proxi,
-        ];
-        let rows: Vec<&RayRecord> = paper
+        // The paper's strategies: every one but the ray-tracing baseline.
+        let rows: Vec<&RayRecord> = Strategy::ALL
             .iter()
+            .filter(|&&s| s != Strategy::Sah)
             .filter_map(|&s| by(&d.rays, s, |r| r.strategy))
             .collect();
         let (ours, rep) = if rows.len() >= 2 {
