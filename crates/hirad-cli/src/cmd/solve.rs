@@ -9,7 +9,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::{NoProgress, Progress};
 use hirad::radiosity::config::parse_bytes;
 use hirad::radiosity::{
-    output, solve_cancellable, Oracle, Reception, SolverConfig, VisibilityMode,
+    output, solve_cancellable, ClusterEmission, Oracle, Reception, SolverConfig, VisibilityMode,
 };
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -64,6 +64,10 @@ pub struct Args {
     /// Cluster reception: oriented or isotropic.
     #[arg(long)]
     pub cluster_receive: Option<String>,
+    /// Cluster emission: directional (default: sampled on the cluster's surfaces, estimated
+    /// from their normals) or isotropic (the paper's Φ/4π with projected area ΣA/4).
+    #[arg(long)]
+    pub cluster_emission: Option<String>,
     /// Seed of the random choices.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -124,6 +128,9 @@ impl Args {
         }
         if let Some(r) = &self.cluster_receive {
             c.cluster_receive = Reception::parse(r)?;
+        }
+        if let Some(e) = &self.cluster_emission {
+            c.cluster_emission = ClusterEmission::parse(e)?;
         }
         if let Some(s) = self.seed {
             c.seed = s;

@@ -4,7 +4,7 @@
 use crate::progress::{overall_bar, Bars};
 use crate::Global;
 use hirad::cluster::Strategy;
-use hirad::radiosity::{Oracle, SolverConfig, VisibilityMode};
+use hirad::radiosity::{ClusterEmission, Oracle, SolverConfig, VisibilityMode};
 use hirad::study::run::{self, Study, StudyConfig};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -23,6 +23,9 @@ pub struct Args {
     /// Refinement oracle: bf or error.
     #[arg(long, default_value = "bf")]
     pub refine: String,
+    /// Cluster emission: isotropic (the paper's model, default here) or directional.
+    #[arg(long, default_value = "isotropic")]
+    pub cluster_emission: String,
     /// Number of ε values of the sweep (geometric series of the relative ε, 0: no sweep).
     /// Default 8, or 0 with `--visibility volume` (that study is the §5 experiment).
     #[arg(long)]
@@ -117,6 +120,7 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
     let visibility = VisibilityMode::parse(&a.visibility)?;
     let solver = SolverConfig {
         refine: Oracle::parse(&a.refine)?,
+        cluster_emission: ClusterEmission::parse(&a.cluster_emission)?,
         visibility: VisibilityMode::Rays,
         two_sided: a.two_sided,
         vol_ratio: a.vol_ratio,

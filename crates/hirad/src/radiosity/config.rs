@@ -101,6 +101,43 @@ impl Reception {
     }
 }
 
+/// How a cluster emits (`--cluster-emission`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ClusterEmission {
+    /// Sillion's isotropic cluster: radiant intensity `Φ/4π`, projected area `ΣA/4` in every
+    /// direction (the paper's model).
+    Isotropic,
+    /// Projected area towards the receiver from the order-2 spherical-harmonic expansion of
+    /// the contents' `Σ A_k max(0, n_k·d)` ([`ClusterOrient::projected_area`]); its order-0
+    /// term is the isotropic model.
+    ///
+    /// [`ClusterOrient::projected_area`]: super::element::ClusterOrient::projected_area
+    #[default]
+    Directional,
+}
+
+impl ClusterEmission {
+    /// Parse `isotropic` or `directional`.
+    pub fn parse(s: &str) -> Result<ClusterEmission> {
+        match s.to_ascii_lowercase().as_str() {
+            "isotropic" => Ok(ClusterEmission::Isotropic),
+            "directional" => Ok(ClusterEmission::Directional),
+            _ => Err(Error::Config(format!(
+                "unknown cluster emission '{s}' (isotropic or directional)"
+            ))),
+        }
+    }
+
+    /// Name as on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ClusterEmission::Isotropic => "isotropic",
+            ClusterEmission::Directional => "directional",
+        }
+    }
+}
+
 /// Every parameter of a solve. `Default` is the `default` preset.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -126,6 +163,8 @@ pub struct SolverConfig {
     pub two_sided: bool,
     /// Cluster reception model.
     pub cluster_receive: Reception,
+    /// How a cluster emits.
+    pub cluster_emission: ClusterEmission,
     /// Maximum refine+gather iterations.
     pub max_iters: u32,
     /// Stop when the relative change of total power falls below this.
@@ -155,6 +194,7 @@ impl Default for SolverConfig {
             vol_ratio: 0.1,
             two_sided: false,
             cluster_receive: Reception::Oriented,
+            cluster_emission: ClusterEmission::default(),
             max_iters: 100,
             tol_converge: 1e-4,
             max_memory: None,

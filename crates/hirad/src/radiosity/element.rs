@@ -76,6 +76,29 @@ pub struct ClusterOrient {
     /// Cosine of the half-angle of the cone around `area_normal` that holds every normal
     /// inside (−1 when there is no such cone narrower than the sphere).
     pub cone_cos: f32,
+    /// Second moment of the normals `M = Σ A_k n_k n_kᵀ` (xx, yy, zz, xy, xz, yz).
+    pub moment: [f32; 6],
+}
+
+impl ClusterOrient {
+    /// Projected area towards the unit direction `d` of a cluster of total area `area`, from
+    /// the spherical-harmonic expansion of `Σ A_k max(0, n_k·d)` to order 2:
+    /// `A/4 + N·d/2 + (5/32)(3 dᵀMd − A)`, clamped at zero. Order 0 alone is the isotropic
+    /// model's `A/4`; the expansion is exact for the order-0 and order-1 parts (the total
+    /// power and its balance between opposite directions), and within `0.094 A` (at grazing
+    /// directions of a flat cluster) of the true projected area.
+    #[inline]
+    pub fn projected_area(&self, area: f64, d: DVec3) -> f64 {
+        let m = self.moment.map(|v| v as f64);
+        let dmd = m[0] * d.x * d.x
+            + m[1] * d.y * d.y
+            + m[2] * d.z * d.z
+            + 2.0 * (m[3] * d.x * d.y + m[4] * d.x * d.z + m[5] * d.y * d.z);
+        let p = 0.25 * area
+            + 0.5 * self.area_normal.as_dvec3().dot(d)
+            + (5.0 / 32.0) * (3.0 * dmd - area);
+        p.max(0.0)
+    }
 }
 
 /// The arena of elements with their radiosity state.
@@ -333,18 +356,37 @@ impl Elements {
 /// inside (every root surface walks up its cluster ancestors).
 fn cluster_orientation(elems: &[Element], kids: &[u32], nc: u32) -> Vec<ClusterOrient> {
     let mut sum = vec![DVec3::ZERO; nc as usize];
+    let mut mom = vec![[0f64; 6]; nc as usize];
     for id in (0..nc as usize).rev() {
         let e = &elems[id];
         let mut acc = DVec3::ZERO;
+        let mut m = [0f64; 6];
         for &k in &kids[e.first_child as usize..(e.first_child + e.num_children) as usize] {
-            acc += if k < nc {
-                sum[k as usize]
+            if k < nc {
+                acc += sum[k as usize];
+                for (a, b) in m.iter_mut().zip(&mom[k as usize]) {
+                    *a += b;
+                }
             } else {
                 let s = &elems[k as usize];
-                s.normal.as_dvec3() * s.area as f64
-            };
+                let a = s.area as f64;
+                let n = s.normal.as_dvec3();
+                acc += n * a;
+                let t = [
+                    n.x * n.x,
+                    n.y * n.y,
+                    n.z * n.z,
+                    n.x * n.y,
+                    n.x * n.z,
+                    n.y * n.z,
+                ];
+                for (mm, v) in m.iter_mut().zip(t) {
+                    *mm += a * v;
+                }
+            }
         }
         sum[id] = acc;
+        mom[id] = m;
     }
     let axis: Vec<DVec3> = (0..nc as usize)
         .map(|id| {
@@ -376,6 +418,7 @@ fn cluster_orientation(elems: &[Element], kids: &[u32], nc: u32) -> Vec<ClusterO
             area_normal: sum[id].as_vec3(),
             // Rounding margin, so that the cone holds its normals in f32.
             cone_cos: (cos_min[id] - 1e-5).max(-1.0) as f32,
+            moment: mom[id].map(|v| v as f32),
         })
         .collect()
 }

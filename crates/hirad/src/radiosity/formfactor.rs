@@ -4,17 +4,32 @@
 //!
 //! All kernels are expressed as form factors from the receiver to the source (dimensionless):
 //! the irradiance a receiver gathers from a source of radiosity `B_j` is `K_ij · B_j`.
-//! Clusters are isotropic (Sillion 1995): a cluster of total area `A` shows the projected area
-//! `A/4` in every direction and has no orientation on the emitting side, so its kernel towards
-//! a point is the disk estimate with `cos θ_j = 1` and area `A/4`.
+//!
+//! Cluster sources ([`ClusterEmission`]):
+//! - isotropic (Sillion 1995, the paper's model): a cluster of total area `A` shows the
+//!   projected area `A/4` in every direction from its centre, so its kernel towards a point is
+//!   the disk estimate with `cos θ_j = 1` and area `A/4`. In a closed scene every cluster lies on
+//!   the enclosure and sends half of that to where no surface is: furnaces come out 20–40% dark.
+//! - directional (default): each sample point is drawn on the cluster's surfaces (area-uniform)
+//!   and carries the projected area `A cos θ_y` of the surface it lies on, so the kernel is a
+//!   Monte Carlo estimate of the form factor of the cluster's contents; the oracle's estimate
+//!   uses the order-2 spherical-harmonic projected area (`ClusterOrient::projected_area`).
+//!
+//! A cluster receiver takes its kernel at its centre, facing the source (`spec/radiosity.md`);
+//! its shadow rays start from points on its surfaces, as do a cluster source's.
 
-use super::element::{Elements, Kind};
+use super::config::ClusterEmission;
+use super::element::{ClusterOrient, Elements, Kind};
 use super::visibility::Visibility;
 use crate::cluster::ClusterTree;
 use crate::ray::volume::Endpoint;
 use crate::rng::SplitMix64;
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
+
+/// Largest error of the order-2 spherical-harmonic expansion of `max(0, t)` on [−1, 1]
+/// (3/32, at t = 0), per unit area: the bound of [`ClusterOrient::projected_area`].
+pub const SH2_ERROR: f64 = 3.0 / 32.0;
 
 /// Point-to-disk estimate of the form factor from a differential area to a disk of area
 /// `area` at squared distance `r2`: `A cos θ_r cos θ_s / (π r² + A)` (zero when either cosine
@@ -130,6 +145,8 @@ pub struct KernelCtx<'a> {
     pub n_rays: usize,
     /// Seed of the run.
     pub seed: u64,
+    /// Emission model of cluster sources.
+    pub emission: ClusterEmission,
 }
 
 /// Geometry of one end of a link.
@@ -148,6 +165,10 @@ enum End {
         c: Vec3,
         area: f64,
         node: u32,
+        /// Orientation summary for the directional emission model (`None`: isotropic).
+        orient: Option<ClusterOrient>,
+        /// Normal of the surface at the sample point `c` (sampled kernels).
+        sample_normal: Option<Vec3>,
     },
 }
 
@@ -194,6 +215,9 @@ impl<'a> KernelCtx<'a> {
                     c: e.centroid,
                     area: e.area as f64,
                     node: e.tri,
+                    orient: (self.emission == ClusterEmission::Directional)
+                        .then(|| self.elems.orient[id as usize]),
+                    sample_normal: None,
                 }
             }
         }
@@ -250,9 +274,22 @@ impl<'a> KernelCtx<'a> {
                     f
                 }
             }
-            End::Cluster { c, area, .. } => {
+            End::Cluster {
+                c,
+                area,
+                orient,
+                sample_normal,
+                ..
+            } => {
                 let d = c.as_dvec3() - xd;
                 let r2 = d.length_squared();
+                let proj = match (sample_normal, orient) {
+                    (Some(ny), Some(_)) if r2 > 0.0 => {
+                        area * (-ny.as_dvec3().dot(d) / r2.sqrt()).max(0.0)
+                    }
+                    (_, Some(o)) if r2 > 0.0 => o.projected_area(area, -d / r2.sqrt()),
+                    _ => area * 0.25,
+                };
                 let cos_r = match n {
                     Some(n) => {
                         if r2 <= 0.0 {
@@ -262,21 +299,23 @@ impl<'a> KernelCtx<'a> {
                     }
                     None => 1.0,
                 };
-                point_to_disk(r2, cos_r, 1.0, area * 0.25)
+                point_to_disk(r2, cos_r, 1.0, proj)
             }
         }
     }
 
-    /// Bound `g` on the under-estimate of the isotropic emission model of source `j` as seen
+    /// Bound `g` on the under-estimate of the cluster emission model of source `j` as seen
     /// from receiver `i`: the projected area of a cluster towards a direction `d` is
-    /// `P(d) = Σ A_k max(0, n_k·d)`, the model uses `ΣA/4`, so its transfer error is at most
-    /// `g · F̃` with `g = max(0, P_max / (ΣA/4) − 1)`, `P_max` an upper bound of `P(d)` over
+    /// `P(d) = Σ A_k max(0, n_k·d)`, the model uses `P_m` (`ΣA/4` isotropic, the order-2
+    /// expansion towards the receiver's centre when directional), so its transfer error is at
+    /// most `g · F̃` with `g = max(0, P_max / P_m − 1)`, `P_max` an upper bound of `P(d)` over
     /// the directions from the source's bounding sphere to the receiver's. `P_max` is the
     /// smaller of `(ΣA + |N| cos⁺(θ − δ)) / 2` (because `Σ A_k |n_k·d| ≤ ΣA`, `N = Σ A_k n_k`)
     /// and the normal-cone bound `ΣA cos⁺(θ − α − δ)` (θ: angle between `N` and the direction,
-    /// α: cone half-angle, δ: half-angle of the direction cone). A flat cluster facing the
-    /// receiver gives `g = 3` (it shows 4× the isotropic area), a cloud of random normals
-    /// `g ≤ 1`. Zero for surface sources.
+    /// α: cone half-angle, δ: half-angle of the direction cone). Isotropic: a flat cluster
+    /// facing the receiver gives `g = 3` (it shows 4× the isotropic area), a cloud of random
+    /// normals `g ≤ 1`. Directional: large only when the direction cone is wide (near
+    /// clusters) or the centre direction grazes the cluster. Zero for surface sources.
     pub fn anisotropy(&self, i: u32, j: u32) -> f64 {
         let e = &self.elems.elems[j as usize];
         if e.kind != Kind::Cluster || e.area <= 0.0 {
@@ -306,7 +345,12 @@ impl<'a> KernelCtx<'a> {
             let t = (theta - alpha - delta).max(0.0);
             p = p.min(if t < PI / 2.0 { a * t.cos() } else { 0.0 });
         }
-        (4.0 * p / a - 1.0).max(0.0)
+        let model = match self.emission {
+            ClusterEmission::Isotropic => 0.25 * a,
+            ClusterEmission::Directional if dist > 0.0 => o.projected_area(a, d / dist),
+            ClusterEmission::Directional => 0.25 * a,
+        };
+        (p / model.max(1e-9 * a) - 1.0).max(0.0)
     }
 
     /// Cheap unoccluded estimate `F̃` (no rays): the maximum of the point kernel at the
@@ -336,43 +380,54 @@ impl<'a> KernelCtx<'a> {
         let mut sv = Vec::with_capacity(n);
         stratified_2d(n, &mut rng, &mut su);
         stratified_2d(n, &mut rng, &mut sv);
-        let (mut jit_r, mut jit_s) = ([0f32; 3], [0f32; 3]);
         let est = self.estimate(i, j);
         let mut sum = 0.0;
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
-        let centre_k = match ri {
-            End::Cluster { c, .. } => Self::point_kernel(c, None, &sj),
-            End::Surface { .. } => 0.0,
-        };
         for s in 0..n {
-            for k in 0..3 {
-                jit_r[k] = rng.next_f32();
-                jit_s[k] = rng.next_f32();
-            }
-            // Receiver sample point and its unoccluded kernel.
+            // Source sample point. A directional cluster source is the projected area of the
+            // sampled surface (its own normal) at that point, so that the kernel converges to
+            // the form factor of the cluster's contents; an isotropic one stays at its centre.
+            let (y, ny) = match sj {
+                End::Surface { v, n, .. } => (sample_triangle(&v, sv[s][0], sv[s][1]), n),
+                End::Cluster { node, .. } => self.sample_cluster(node, sv[s][0], sv[s][1]),
+            };
+            let src = match sj {
+                End::Cluster {
+                    lo,
+                    hi,
+                    area,
+                    node,
+                    orient: Some(o),
+                    ..
+                } => End::Cluster {
+                    lo,
+                    hi,
+                    c: y,
+                    area,
+                    node,
+                    orient: Some(o),
+                    sample_normal: Some(ny),
+                },
+                other => other,
+            };
+            // Receiver sample point (on a surface inside a cluster receiver, whose kernel is
+            // taken at its centre, facing the source) and its unoccluded kernel.
             let (x, fx) = match ri {
                 End::Surface { v, n: nr, .. } => {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
-                    (x, Self::point_kernel(x, Some(nr), &sj))
+                    (x, Self::point_kernel(x, Some(nr), &src))
                 }
-                End::Cluster { lo, hi, .. } => {
-                    let t = Vec3::new(su[s][0], su[s][1], jit_r[0]);
-                    let x = lo + (hi - lo) * t;
-                    let f = if bounds {
-                        Self::point_kernel(x, None, &sj)
-                    } else {
-                        centre_k
-                    };
-                    (x, f)
-                }
-            };
-            // Source sample point.
-            let y = match sj {
-                End::Surface { v, .. } => sample_triangle(&v, sv[s][0], sv[s][1]),
-                End::Cluster { lo, hi, .. } => {
-                    lo + (hi - lo) * Vec3::new(sv[s][0], sv[s][1], jit_s[0])
+                End::Cluster { node, c, .. } => {
+                    let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
+                    if bounds {
+                        // The kernel's spread over the receiving cluster.
+                        let fb = Self::point_kernel(x, None, &src);
+                        fmin = fmin.min(fb);
+                        fmax = fmax.max(fb);
+                    }
+                    (x, Self::point_kernel(c, None, &src))
                 }
             };
             let vis = if fx > 0.0 || bounds {
@@ -385,10 +440,7 @@ impl<'a> KernelCtx<'a> {
             vmax = vmax.max(vis);
             fmin = fmin.min(fx);
             fmax = fmax.max(fx);
-            sum += match ri {
-                End::Surface { .. } => fx * vis,
-                End::Cluster { .. } => centre_k * vis,
-            };
+            sum += fx * vis;
         }
         if bounds {
             // Corner points of a surface receiver widen the kernel range (no rays).
@@ -410,6 +462,44 @@ impl<'a> KernelCtx<'a> {
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,
             rays,
+        }
+    }
+
+    /// Area-uniform point on the surfaces inside cluster `node` from two numbers in [0, 1):
+    /// `u` picks a surface by descending the hierarchy with area-weighted choices (rescaled at
+    /// each level, so stratification of `u` carries over), `(u, v)` then place the point on it.
+    fn sample_cluster(&self, node: u32, u: f32, v: f32) -> (Vec3, Vec3) {
+        let el = self.elems;
+        let mut id = node;
+        let mut u = u as f64;
+        loop {
+            let e = &el.elems[id as usize];
+            if e.kind == Kind::Surface || e.num_children == 0 {
+                return if e.kind == Kind::Surface {
+                    (sample_triangle(&e.verts, u as f32, v), e.normal)
+                } else {
+                    (e.centroid, Vec3::ZERO)
+                };
+            }
+            let target = u * e.area as f64;
+            let mut acc = 0.0f64;
+            let mut pick = (id, 0.0f64, 0.0f64);
+            for c in el.children(id) {
+                let a = el.elems[c as usize].area as f64;
+                if a <= 0.0 {
+                    continue;
+                }
+                pick = (c, acc, a);
+                if acc + a > target {
+                    break;
+                }
+                acc += a;
+            }
+            if pick.0 == id {
+                return (e.centroid, Vec3::ZERO);
+            }
+            u = ((target - pick.1) / pick.2).clamp(0.0, 0.999_999_9);
+            id = pick.0;
         }
     }
 

@@ -21,6 +21,6 @@ pub mod solver;
 pub mod stats;
 pub mod visibility;
 
-pub use config::{Oracle, Reception, SolverConfig, VisibilityMode};
+pub use config::{ClusterEmission, Oracle, Reception, SolverConfig, VisibilityMode};
 pub use solver::{solve, solve_cancellable, Solution};
 pub use stats::SolveStats;

@@ -222,6 +222,7 @@ impl<'a> Solver<'a> {
             visibility: cfg.visibility.name().to_string(),
             shadow_rays: cfg.shadow_rays,
             two_sided: cfg.two_sided,
+            cluster_emission: cfg.cluster_emission.name().into(),
             cluster_receive: match cfg.cluster_receive {
                 Reception::Oriented => "oriented".into(),
                 Reception::Isotropic => "isotropic".into(),
@@ -496,6 +497,7 @@ impl<'a> Solver<'a> {
             vis: self.vis,
             n_rays: self.cfg.shadow_rays as usize,
             seed: self.cfg.seed,
+            emission: self.cfg.cluster_emission,
         }
     }
 

@@ -77,6 +77,8 @@ pub struct SolveStats {
     pub shadow_rays: u32,
     pub two_sided: bool,
     pub cluster_receive: String,
+    /// Cluster emission model (`isotropic` or `directional`).
+    pub cluster_emission: String,
     pub threads: usize,
     /// All elements (clusters + surface elements).
     pub elements: usize,

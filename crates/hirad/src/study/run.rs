@@ -78,7 +78,11 @@ impl Default for StudyConfig {
             scene: "office".into(),
             strategies: Strategy::ALL.to_vec(),
             cluster: ClusterConfig::default(),
-            solver: SolverConfig::default(),
+            // The paper's cluster model: the study reproduces its experiments.
+            solver: SolverConfig {
+                cluster_emission: radiosity::ClusterEmission::Isotropic,
+                ..SolverConfig::default()
+            },
             tolerances: 8,
             eps_list: Vec::new(),
             eps_hi: 0.2,
