@@ -385,6 +385,21 @@ impl<'a> KernelCtx<'a> {
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
+        // Directional cluster receiver: ΣA / P(d), P(d) = Σ A_k max(0, n_k·d) its exact
+        // projected area towards the source's centroid (the direction of the hand-out).
+        let recv_scale = match ri {
+            End::Cluster { node, area, .. } if self.emission == ClusterEmission::Directional => {
+                let e = &self.elems.elems;
+                let d = (e[j as usize].centroid - e[i as usize].centroid).normalize_or_zero();
+                let p = self.contents_projected_area(node, d);
+                if p > 1e-9 * area {
+                    area / p
+                } else {
+                    0.0
+                }
+            }
+            _ => 0.0,
+        };
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -418,6 +433,12 @@ impl<'a> KernelCtx<'a> {
                 End::Surface { v, n: nr, .. } => {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
                     (x, Self::point_kernel(x, Some(nr), &src))
+                }
+                End::Cluster { node, .. } if recv_scale > 0.0 => {
+                    // Directional: the irradiance on the sampled surface itself, scaled so that
+                    // the oriented hand-out `H·max(0, n_k·d)` delivers the sampled mean.
+                    let (x, nx) = self.sample_cluster(node, su[s][0], su[s][1]);
+                    (x, recv_scale * Self::point_kernel(x, Some(nx), &src))
                 }
                 End::Cluster { node, c, .. } => {
                     let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
@@ -463,6 +484,23 @@ impl<'a> KernelCtx<'a> {
             kmax: fmax.max(est) * vmax,
             rays,
         }
+    }
+
+    /// Exact projected area `Σ A_k max(0, n_k·d)` of the surfaces inside cluster `node`.
+    fn contents_projected_area(&self, node: u32, d: Vec3) -> f64 {
+        let el = self.elems;
+        let mut stack = vec![node];
+        let mut p = 0.0f64;
+        while let Some(id) = stack.pop() {
+            for c in el.children(id) {
+                let e = &el.elems[c as usize];
+                match e.kind {
+                    Kind::Cluster => stack.push(c),
+                    Kind::Surface => p += e.area as f64 * e.normal.dot(d).max(0.0) as f64,
+                }
+            }
+        }
+        p
     }
 
     /// Area-uniform point on the surfaces inside cluster `node` from two numbers in [0, 1):
