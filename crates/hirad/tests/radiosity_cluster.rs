@@ -205,6 +205,48 @@ fn cluster_receives_projected_area_quarter() {
 }
 
 #[test]
+fn directional_cluster_receives_the_power_its_surfaces_would() {
+    // A directional cluster receiver samples the irradiance on its own surfaces (importance
+    // sampled by their hand-out weights) so that the oriented hand-out delivers the power the
+    // surfaces would receive one by one: Σ A_k E_k with E_k the exact irradiance of each
+    // randomly oriented patch (zero for those facing away).
+    let scene = cloud_scene(false);
+    let (tree, _) = cloud_tree(&scene);
+    let n = scene.num_triangles();
+    let mut exact = 0.0;
+    for k in 0..PATCHES {
+        let x = scene.tri_centroid(k).as_dvec3();
+        let nk = scene.normals[k].as_dvec3();
+        for t in [n - 2, n - 1] {
+            let poly = scene.tri_vertices(t).map(|p| p.as_dvec3());
+            exact +=
+                scene.areas[k] as f64 * point_to_polygon(x, nk, &poly, scene.normals[t].as_dvec3());
+        }
+    }
+    let cfg = SolverConfig {
+        eps: Some(1e9),
+        cluster_receive: Reception::Oriented,
+        cluster_emission: ClusterEmission::Directional,
+        ..SolverConfig::default()
+    };
+    let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+    let received: f64 = (0..PATCHES as u32)
+        .map(|t| scene.areas[t as usize] as f64 * sol.triangle_irradiance(t, false).x)
+        .sum();
+    let rel = (received - exact).abs() / exact;
+    println!(
+        "directional reception: received {received:.6e}, exact Σ A_k E_k {exact:.6e} (rel {rel:.2e}), \
+         {} cluster-surface links",
+        sol.stats.links_cs
+    );
+    assert!(
+        sol.stats.links_cs >= 2,
+        "the square must link to the cloud as a cluster"
+    );
+    assert!(rel < 5e-3, "directional reception {rel}");
+}
+
+#[test]
 fn cluster_emits_projected_area_quarter() {
     let scene = cloud_scene(true);
     let (tree, _) = cloud_tree(&scene);
@@ -264,6 +306,7 @@ fn anisotropy_bound_holds_and_flags_flat_clusters() {
         n_rays: 1,
         seed: 1,
         emission: ClusterEmission::Isotropic,
+        reception: Reception::Oriented,
     };
     let n = scene.num_triangles() as u32;
     let mut checked = 0;
@@ -324,6 +367,7 @@ fn flat_cluster_facing_receiver_has_anisotropy_three() {
         n_rays: 1,
         seed: 1,
         emission: ClusterEmission::Isotropic,
+        reception: Reception::Oriented,
     };
     let flat = tree.surface_node[0];
     let top = el.first_root + 2;

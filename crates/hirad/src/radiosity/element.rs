@@ -52,11 +52,47 @@ pub struct Element {
     pub emission: Vec3,
 }
 
+/// Share `max(0, n·ŝ)` of a cluster's received irradiance that a surface (centroid, normal)
+/// gets from a source at `src_centroid` under the directional cluster model: `ŝ` points from
+/// the surface's centroid to the source's, and nothing reaches a surface from behind a surface
+/// source (`src_normal`: the source's normal, zero for a cluster source), which keeps the back
+/// faces of two-sided surfaces from receiving what their front faces get.
+#[inline(always)]
+pub fn facing_weight(centroid: Vec3, normal: Vec3, src_centroid: Vec3, src_normal: Vec3) -> f64 {
+    let to = src_centroid - centroid;
+    let c = normal.dot(to);
+    if src_normal.dot(to) > 0.0 || c <= 0.0 {
+        return 0.0;
+    }
+    (c / to.length()) as f64
+}
+
 impl Element {
     /// True for cluster elements.
     #[inline]
     pub fn is_cluster(&self) -> bool {
         self.kind == Kind::Cluster
+    }
+
+    /// Share of a cluster's received irradiance that this surface gets from source `src`
+    /// under the directional cluster model ([`facing_weight`]).
+    #[inline]
+    pub fn facing_weight(&self, src: &Element) -> f64 {
+        facing_weight(
+            self.centroid,
+            self.normal,
+            src.centroid,
+            src.facing_normal(),
+        )
+    }
+
+    /// The normal for [`facing_weight`]: a surface's own, zero for a cluster.
+    #[inline]
+    pub fn facing_normal(&self) -> Vec3 {
+        match self.kind {
+            Kind::Surface => self.normal,
+            Kind::Cluster => Vec3::ZERO,
+        }
     }
 
     /// True when the element has no children yet.

@@ -18,7 +18,7 @@
 //! A cluster receiver takes its kernel at its centre, facing the source (`spec/radiosity.md`);
 //! its shadow rays start from points on its surfaces, as do a cluster source's.
 
-use super::config::ClusterEmission;
+use super::config::{ClusterEmission, Reception};
 use super::element::{ClusterOrient, Elements, Kind};
 use super::visibility::Visibility;
 use crate::cluster::ClusterTree;
@@ -147,6 +147,8 @@ pub struct KernelCtx<'a> {
     pub seed: u64,
     /// Emission model of cluster sources.
     pub emission: ClusterEmission,
+    /// How clusters hand received irradiance to their surfaces.
+    pub reception: Reception,
 }
 
 /// Geometry of one end of a link.
@@ -385,21 +387,33 @@ impl<'a> KernelCtx<'a> {
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
-        // Directional cluster receiver: ΣA / P(d), P(d) = Σ A_k max(0, n_k·d) its exact
-        // projected area towards the source's centroid (the direction of the hand-out).
-        let recv_scale = match ri {
-            End::Cluster { node, area, .. } if self.emission == ClusterEmission::Directional => {
-                let e = &self.elems.elems;
-                let d = (e[j as usize].centroid - e[i as usize].centroid).normalize_or_zero();
-                let p = self.contents_projected_area(node, d);
-                if p > 1e-9 * area {
-                    area / p
-                } else {
-                    0.0
-                }
+        // Directional cluster receiver with oriented reception: its surfaces k with their
+        // hand-out weights w_k (`facing_weight`) as a cumulative distribution of A_k·w_k; a
+        // surface drawn from it contributes E(x)/w_k, whose mean is Σ A_k E_k / Σ A_k w_k, the
+        // irradiance that the hand-out `H·w_k` must carry to deliver the received power.
+        let recv_cdf = match ri {
+            End::Cluster { node, .. }
+                if self.emission == ClusterEmission::Directional
+                    && self.reception == Reception::Oriented =>
+            {
+                self.hand_out_cdf(node, j)
             }
-            _ => 0.0,
+            _ => Vec::new(),
         };
+        if recv_cdf.is_empty()
+            && matches!(ri, End::Cluster { .. })
+            && self.emission == ClusterEmission::Directional
+            && self.reception == Reception::Oriented
+        {
+            // No surface of the receiver faces the source: the hand-out delivers nothing.
+            return KernelEval {
+                k: 0.0,
+                est,
+                kmin: 0.0,
+                kmax: 0.0,
+                rays: 0,
+            };
+        }
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -434,11 +448,19 @@ impl<'a> KernelCtx<'a> {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
                     (x, Self::point_kernel(x, Some(nr), &src))
                 }
-                End::Cluster { node, .. } if recv_scale > 0.0 => {
-                    // Directional: the irradiance on the sampled surface itself, scaled so that
-                    // the oriented hand-out `H·max(0, n_k·d)` delivers the sampled mean.
-                    let (x, nx) = self.sample_cluster(node, su[s][0], su[s][1]);
-                    (x, recv_scale * Self::point_kernel(x, Some(nx), &src))
+                End::Cluster { .. } if !recv_cdf.is_empty() => {
+                    let total = recv_cdf[recv_cdf.len() - 1].1;
+                    let target = su[s][0] as f64 * total;
+                    let i = recv_cdf
+                        .partition_point(|&(_, c)| c <= target)
+                        .min(recv_cdf.len() - 1);
+                    let lo = if i > 0 { recv_cdf[i - 1].1 } else { 0.0 };
+                    let hi = recv_cdf[i].1;
+                    let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
+                    let e = &self.elems.elems[recv_cdf[i].0 as usize];
+                    let x = sample_triangle(&e.verts, u as f32, su[s][1]);
+                    let w = e.facing_weight(&self.elems.elems[j as usize]);
+                    (x, Self::point_kernel(x, Some(e.normal), &src) / w)
                 }
                 End::Cluster { node, c, .. } => {
                     let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
@@ -473,7 +495,11 @@ impl<'a> KernelCtx<'a> {
                 }
             }
         }
-        let k = sum / n as f64;
+        let mut k = sum / n as f64;
+        if !recv_cdf.is_empty() {
+            // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
+            k = k.min(1.0);
+        }
         if !fmin.is_finite() {
             fmin = 0.0;
         }
@@ -486,21 +512,32 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
-    /// Exact projected area `Σ A_k max(0, n_k·d)` of the surfaces inside cluster `node`.
-    fn contents_projected_area(&self, node: u32, d: Vec3) -> f64 {
+    /// The surfaces inside cluster `node` with a positive hand-out weight towards source
+    /// element `src` ([`Element::facing_weight`]), with the running sums of `A_k·w_k`.
+    ///
+    /// [`Element::facing_weight`]: super::element::Element::facing_weight
+    fn hand_out_cdf(&self, node: u32, src: u32) -> Vec<(u32, f64)> {
         let el = self.elems;
+        let se = &el.elems[src as usize];
+        let mut out = Vec::new();
         let mut stack = vec![node];
-        let mut p = 0.0f64;
+        let mut acc = 0.0f64;
         while let Some(id) = stack.pop() {
             for c in el.children(id) {
                 let e = &el.elems[c as usize];
                 match e.kind {
                     Kind::Cluster => stack.push(c),
-                    Kind::Surface => p += e.area as f64 * e.normal.dot(d).max(0.0) as f64,
+                    Kind::Surface => {
+                        let w = e.area as f64 * e.facing_weight(se);
+                        if w > 0.0 {
+                            acc += w;
+                            out.push((c, acc));
+                        }
+                    }
                 }
             }
         }
-        p
+        out
     }
 
     /// Area-uniform point on the surfaces inside cluster `node` from two numbers in [0, 1):

@@ -23,8 +23,8 @@
 //! directions that are above the horizon and escape. Both are computed once per surface element
 //! when it is created and added to the irradiance of the leaves in push-pull.
 
-use super::config::{Oracle, Reception, SolverConfig};
-use super::element::{Elements, Kind};
+use super::config::{ClusterEmission, Oracle, Reception, SolverConfig};
+use super::element::{facing_weight, Elements, Kind};
 use super::formfactor::{sample_triangle, KernelCtx};
 use super::link::{Link, LinkKind, LinkSet};
 use super::oracle::{self, Action};
@@ -50,6 +50,10 @@ const REFINE_DRIFT: f64 = 0.05;
 /// Physically `Σ_j F_ij ≤ 1`, so only leaves whose estimated kernels sum above `0.95 / ρ`
 /// are touched (none in a furnace of ρ = 0.5 unless the estimates are off by 90%).
 const GAIN_MAX: f64 = 0.95;
+
+/// A cluster receiver's link whose sampled kernel exceeds the `bf` oracle's estimate by more
+/// than this factor is judged again on the sampled kernel.
+const MISJUDGED: f64 = 2.0;
 
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
@@ -131,8 +135,24 @@ struct Gathered {
     h_cluster: f64,
     /// Sum of the link kernels (surface receivers).
     k_sum: f64,
-    /// Cluster receivers: (unit direction to the source, irradiance, kernel) per link.
-    entries: Vec<(Vec3, DVec3, f32)>,
+    /// Cluster receivers: one entry per link.
+    entries: Vec<Entry>,
+}
+
+/// What a cluster received through one link, handed to its surfaces in push-pull.
+#[derive(Clone, Copy, Debug)]
+struct Entry {
+    /// Unit direction from the cluster's centroid to the source's.
+    d: Vec3,
+    /// Source centroid and [`Element::facing_normal`] (for [`facing_weight`]).
+    ///
+    /// [`Element::facing_normal`]: super::element::Element::facing_normal
+    sc: Vec3,
+    sn: Vec3,
+    /// Irradiance `K·B_src`.
+    h: DVec3,
+    /// Kernel.
+    k: f32,
 }
 
 /// Result of push-pull below one root surface.
@@ -163,7 +183,7 @@ struct Solver<'a> {
     rays: u64,
     /// Per cluster: range into `entries`.
     cl_ranges: Vec<(u32, u32)>,
-    entries: Vec<(Vec3, DVec3, f32)>,
+    entries: Vec<Entry>,
     /// Per element: irradiance (channel sum) gathered from cluster sources.
     h_cluster: Vec<f64>,
     /// Per element: sum of the kernels of its own links (surface receivers).
@@ -361,7 +381,7 @@ impl<'a> Solver<'a> {
             + (self.h_cluster.capacity() + self.k_sum.capacity()) * 8
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * std::mem::size_of::<Link>()
-            + self.entries.capacity() * std::mem::size_of::<(Vec3, DVec3, f32)>()) as u64
+            + self.entries.capacity() * std::mem::size_of::<Entry>()) as u64
     }
 
     fn note_peak(&mut self) {
@@ -498,6 +518,7 @@ impl<'a> Solver<'a> {
             n_rays: self.cfg.shadow_rays as usize,
             seed: self.cfg.seed,
             emission: self.cfg.cluster_emission,
+            reception: self.cfg.cluster_receive,
         }
     }
 
@@ -559,6 +580,25 @@ impl<'a> Solver<'a> {
                 }
             };
             link.k = ev.k as f32;
+            // A cluster receiver's sampled kernel can be far above the centre estimate when
+            // some of its surfaces are much nearer the source than its centre: the oracle
+            // judged the wrong number, so judge the sampled one.
+            if allow
+                && ok == Oracle::Bf
+                && r.kind == Kind::Cluster
+                && ev.k > MISJUDGED * link.est as f64
+                && oracle::wants_refine(
+                    ok,
+                    self.eps,
+                    ev.k,
+                    self.el.b[sj as usize],
+                    r.rho.as_dvec3(),
+                )
+            {
+                if let Some(a) = oracle::choose_split(r, s, self.min_area) {
+                    return (a, *l, rays);
+                }
+            }
         }
         (Action::Keep, link, rays)
     }
@@ -583,7 +623,13 @@ impl<'a> Solver<'a> {
                     let se = &el.elems[l.src as usize];
                     if re.kind == Kind::Cluster {
                         let d = (se.centroid - re.centroid).normalize_or_zero();
-                        g.entries.push((d, contrib, l.k));
+                        g.entries.push(Entry {
+                            d,
+                            sc: se.centroid,
+                            sn: se.facing_normal(),
+                            h: contrib,
+                            k: l.k,
+                        });
                     } else {
                         g.h += contrib;
                         g.k_sum += l.k as f64;
@@ -635,6 +681,7 @@ impl<'a> Solver<'a> {
         let h_cluster = &self.h_cluster;
         let k_sum = &self.k_sum;
         let reception = self.cfg.cluster_receive;
+        let emission = self.cfg.cluster_emission;
         let results: Vec<RootResult> = roots
             .clone()
             .into_par_iter()
@@ -647,13 +694,18 @@ impl<'a> Solver<'a> {
                 while node != NONE {
                     if (node as usize) < cl_ranges.len() {
                         let (a, b) = cl_ranges[node as usize];
-                        for &(d, h, k) in &entries[a as usize..b as usize] {
-                            let w = match reception {
-                                Reception::Oriented => n.dot(d).max(0.0) as f64,
-                                Reception::Isotropic => 0.25,
+                        for en in &entries[a as usize..b as usize] {
+                            let w = match (reception, emission) {
+                                (Reception::Oriented, ClusterEmission::Directional) => {
+                                    facing_weight(e.centroid, n, en.sc, en.sn)
+                                }
+                                (Reception::Oriented, ClusterEmission::Isotropic) => {
+                                    n.dot(en.d).max(0.0) as f64
+                                }
+                                (Reception::Isotropic, _) => 0.25,
                             };
-                            hc += h * w;
-                            kc += k as f64 * w;
+                            hc += en.h * w;
+                            kc += en.k as f64 * w;
                         }
                     }
                     node = tree.nodes[node as usize].parent;
