@@ -183,6 +183,8 @@ struct Solver<'a> {
     rays: u64,
     /// Per cluster: range into `entries`.
     cl_ranges: Vec<(u32, u32)>,
+    /// Root surfaces in cluster tree order (push-pull's pass over the clusters' entries).
+    pp_order: Vec<u32>,
     entries: Vec<Entry>,
     /// Per element: irradiance (channel sum) gathered from cluster sources.
     h_cluster: Vec<f64>,
@@ -266,6 +268,7 @@ impl<'a> Solver<'a> {
             peak: 0,
             rays: 0,
             cl_ranges: vec![(0, 0); nc],
+            pp_order: Vec::new(),
             entries: Vec::new(),
             root_irr: Vec::new(),
             has_sun_sky,
@@ -682,10 +685,18 @@ impl<'a> Solver<'a> {
         let k_sum = &self.k_sum;
         let reception = self.cfg.cluster_receive;
         let emission = self.cfg.cluster_emission;
-        let results: Vec<RootResult> = roots
-            .clone()
-            .into_par_iter()
-            .map(|r| {
+        // Irradiance handed down by the clusters above each root surface, computed in cluster
+        // tree order (roots sorted by their surface's node) so that the entries of the clusters
+        // that consecutive surfaces share stay in cache.
+        if self.pp_order.len() != roots.len() {
+            let mut order: Vec<u32> = roots.clone().collect();
+            order.sort_by_key(|&r| (tree.surface_node[el.elems[r as usize].tri as usize], r));
+            self.pp_order = order;
+        }
+        let from_clusters: Vec<(DVec3, f64)> = self
+            .pp_order
+            .par_iter()
+            .map(|&r| {
                 let e = &el.elems[r as usize];
                 let n = e.normal;
                 let mut hc = DVec3::ZERO;
@@ -710,6 +721,19 @@ impl<'a> Solver<'a> {
                     }
                     node = tree.nodes[node as usize].parent;
                 }
+                (hc, kc)
+            })
+            .collect();
+        let mut hk = vec![(DVec3::ZERO, 0.0f64); roots.len()];
+        for (&r, v) in self.pp_order.iter().zip(from_clusters) {
+            hk[(r - roots.start) as usize] = v;
+        }
+        let results: Vec<RootResult> = roots
+            .clone()
+            .into_par_iter()
+            .map(|r| {
+                let e = &el.elems[r as usize];
+                let (hc, kc) = hk[(r - roots.start) as usize];
                 let mut out = RootResult::default();
                 let area = e.area as f64;
                 out.gathered_cluster = area * hc.element_sum();
