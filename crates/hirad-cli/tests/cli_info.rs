@@ -104,3 +104,32 @@ fn scene_export_then_info() {
         assert!((ta - tb).abs() < 1e-5 * ta, "{ext}: {ta} vs {tb}");
     }
 }
+
+#[test]
+fn builtin_name_wins_over_a_directory_of_that_name() {
+    // `hirad solve office --out office` leaves a directory `office`; the next run in the same
+    // place must still find the built-in scene, and a directory of another name is an error.
+    let d = tempfile::tempdir().unwrap();
+    std::fs::create_dir(d.path().join("office")).unwrap();
+    std::fs::create_dir(d.path().join("results")).unwrap();
+    let out = hirad()
+        .current_dir(d.path())
+        .args(["info", "office", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["triangles"], 8_354);
+    let out = hirad()
+        .current_dir(d.path())
+        .args(["info", "results"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("results"), "{err}");
+}

@@ -462,7 +462,8 @@ impl Scene {
 
 fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
     let path = Path::new(spec);
-    if !path.exists() {
+    // A directory is never a scene: a built-in name wins over a directory of that name.
+    if !path.exists() || (path.is_dir() && builtin::is_name(spec)) {
         if let Some(raw) = builtin::generate(spec)? {
             let mut raw = raw;
             if let Some(up) = opts.up {

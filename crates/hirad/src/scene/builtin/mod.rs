@@ -86,6 +86,11 @@ impl BuiltinSpec {
     }
 }
 
+/// True when `name` names a built-in scene (with or without a size or seed).
+pub fn is_name(name: &str) -> bool {
+    matches!(BuiltinSpec::parse(name), Ok(Some(_)))
+}
+
 /// Generate the built-in scene `name`, `Ok(None)` when there is no such scene.
 pub fn generate(name: &str) -> Result<Option<RawScene>> {
     let Some(spec) = BuiltinSpec::parse(name)? else {
