@@ -46,10 +46,11 @@ pub struct Args {
     /// Shadow rays per link.
     #[arg(long)]
     pub shadow_rays: Option<u32>,
-    /// Minimum element area (scene units²; default 1e-4 × total area).
+    /// Minimum element area (scene units²; default --min-area-rel × total area).
     #[arg(long)]
     pub min_area: Option<f64>,
-    /// Minimum element area relative to the total surface area (used without --min-area).
+    /// Minimum element area relative to the total surface area, both faces of two-sided
+    /// surfaces counted (used without --min-area; default 1e-3, preset `reference` 2.5e-4).
     #[arg(long)]
     pub min_area_rel: Option<f64>,
     /// Maximum refine+gather iterations.
