@@ -540,6 +540,7 @@ impl<'a> Solver<'a> {
         let mut link = *l;
         let mut rays = 0;
         let mut eval = None;
+        let mut est_raw = None;
         if !link.evaluated() {
             if ctx.is_zero(ri, sj) {
                 return (Action::Drop, link, 0);
@@ -551,7 +552,11 @@ impl<'a> Solver<'a> {
                 0.0
             };
             match ok {
-                Oracle::Bf => link.est = (ctx.estimate(ri, sj) * g.max(1.0)) as f32,
+                Oracle::Bf => {
+                    let e = ctx.estimate(ri, sj);
+                    est_raw = Some(e);
+                    link.est = (e * g.max(1.0)) as f32;
+                }
                 Oracle::Error => {
                     let ev = ctx.evaluate(ri, sj, true);
                     rays += ev.rays;
@@ -577,7 +582,7 @@ impl<'a> Solver<'a> {
             let ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let ev = ctx.evaluate(ri, sj, false);
+                    let ev = ctx.evaluate_with(ri, sj, false, est_raw);
                     rays += ev.rays;
                     ev
                 }
