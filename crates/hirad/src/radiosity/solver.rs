@@ -384,7 +384,8 @@ impl<'a> Solver<'a> {
             + (self.h_cluster.capacity() + self.k_sum.capacity()) * 8
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * std::mem::size_of::<Link>()
-            + self.entries.capacity() * std::mem::size_of::<Entry>()) as u64
+            + self.entries.capacity() * std::mem::size_of::<Entry>()
+            + self.pp_order.capacity() * 4) as u64
     }
 
     fn note_peak(&mut self) {
