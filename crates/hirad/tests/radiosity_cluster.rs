@@ -286,10 +286,26 @@ fn projected_area(el: &hirad::radiosity::element::Elements, c: u32, d: Vec3) -> 
         .sum()
 }
 
+/// Kernel context of the isotropic model with one shadow ray (visibility is off in these tests).
+fn isotropic_ctx<'a>(
+    el: &'a hirad::radiosity::element::Elements,
+    tree: &'a ClusterTree,
+    vis: &'a hirad::radiosity::visibility::Visibility<'a>,
+) -> hirad::radiosity::formfactor::KernelCtx<'a> {
+    hirad::radiosity::formfactor::KernelCtx {
+        elems: el,
+        tree,
+        vis,
+        n_rays: 1,
+        seed: 1,
+        emission: ClusterEmission::Isotropic,
+        reception: Reception::Oriented,
+    }
+}
+
 #[test]
 fn anisotropy_bound_holds_and_flags_flat_clusters() {
     use hirad::radiosity::element::Elements;
-    use hirad::radiosity::formfactor::KernelCtx;
     use hirad::radiosity::visibility::Visibility;
     use hirad::radiosity::VisibilityMode;
     // Every cluster of the random cloud against both square triangles: the true projected
@@ -299,15 +315,7 @@ fn anisotropy_bound_holds_and_flags_flat_clusters() {
     let (tree, cloud) = cloud_tree(&scene);
     let el = Elements::build(&scene, &tree, false);
     let vis = Visibility::new(&scene, &tree, VisibilityMode::None, 0.1).unwrap();
-    let ctx = KernelCtx {
-        elems: &el,
-        tree: &tree,
-        vis: &vis,
-        n_rays: 1,
-        seed: 1,
-        emission: ClusterEmission::Isotropic,
-        reception: Reception::Oriented,
-    };
+    let ctx = isotropic_ctx(&el, &tree, &vis);
     let n = scene.num_triangles() as u32;
     let mut checked = 0;
     let mut worst = 0.0f64;
@@ -335,7 +343,6 @@ fn anisotropy_bound_holds_and_flags_flat_clusters() {
 #[test]
 fn flat_cluster_facing_receiver_has_anisotropy_three() {
     use hirad::radiosity::element::Elements;
-    use hirad::radiosity::formfactor::KernelCtx;
     use hirad::radiosity::visibility::Visibility;
     use hirad::radiosity::VisibilityMode;
     // A unit square (its own cluster, facing +z) and a small square 10 m above it facing down:
@@ -360,15 +367,7 @@ fn flat_cluster_facing_receiver_has_anisotropy_three() {
     let tree = radiosity_common::tree_by_object(&scene);
     let el = Elements::build(&scene, &tree, false);
     let vis = Visibility::new(&scene, &tree, VisibilityMode::None, 0.1).unwrap();
-    let ctx = KernelCtx {
-        elems: &el,
-        tree: &tree,
-        vis: &vis,
-        n_rays: 1,
-        seed: 1,
-        emission: ClusterEmission::Isotropic,
-        reception: Reception::Oriented,
-    };
+    let ctx = isotropic_ctx(&el, &tree, &vis);
     let flat = tree.surface_node[0];
     let top = el.first_root + 2;
     let g = ctx.anisotropy(top, flat);

@@ -15,8 +15,11 @@
 //!   Monte Carlo estimate of the form factor of the cluster's contents; the oracle's estimate
 //!   uses the order-2 spherical-harmonic projected area (`ClusterOrient::projected_area`).
 //!
-//! A cluster receiver takes its kernel at its centre, facing the source (`spec/radiosity.md`);
-//! its shadow rays start from points on its surfaces, as do a cluster source's.
+//! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
+//! centre, facing the source (`spec/radiosity.md`); a directional cluster with oriented
+//! reception samples its surfaces in proportion to their hand-out weights (see
+//! [`KernelCtx::evaluate_with`]). Shadow rays of cluster ends start from points on their
+//! surfaces.
 
 use super::config::{ClusterEmission, Reception};
 use super::element::{ClusterOrient, Elements, Kind};
@@ -447,15 +450,11 @@ impl<'a> KernelCtx<'a> {
                 if self.emission == ClusterEmission::Directional
                     && self.reception == Reception::Oriented =>
             {
-                self.hand_out_cdf(node, j)
+                Some(self.hand_out_cdf(node, j))
             }
-            _ => Vec::new(),
+            _ => None,
         };
-        if recv_cdf.is_empty()
-            && matches!(ri, End::Cluster { .. })
-            && self.emission == ClusterEmission::Directional
-            && self.reception == Reception::Oriented
-        {
+        if recv_cdf.as_ref().is_some_and(|c| c.is_empty()) {
             // No surface of the receiver faces the source: the hand-out delivers nothing.
             return KernelEval {
                 k: 0.0,
@@ -492,28 +491,29 @@ impl<'a> KernelCtx<'a> {
                 },
                 other => other,
             };
-            // Receiver sample point (on a surface inside a cluster receiver, whose kernel is
-            // taken at its centre, facing the source) and its unoccluded kernel.
-            let (x, fx) = match ri {
-                End::Surface { v, n: nr, .. } => {
+            // Receiver sample point and its unoccluded kernel: on a surface receiver; on a
+            // surface of a directional cluster drawn by hand-out weight (irradiance there over
+            // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
+            // centre, facing the source.
+            let (x, fx) = match (ri, recv_cdf.as_deref()) {
+                (End::Surface { v, n: nr, .. }, _) => {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
                     (x, Self::point_kernel(x, Some(nr), &src))
                 }
-                End::Cluster { .. } if !recv_cdf.is_empty() => {
-                    let total = recv_cdf[recv_cdf.len() - 1].1;
+                (End::Cluster { .. }, Some(cdf)) => {
+                    let total = cdf[cdf.len() - 1].1;
                     let target = su[s][0] as f64 * total;
-                    let i = recv_cdf
-                        .partition_point(|&(_, c)| c <= target)
-                        .min(recv_cdf.len() - 1);
-                    let lo = if i > 0 { recv_cdf[i - 1].1 } else { 0.0 };
-                    let hi = recv_cdf[i].1;
+                    let i = cdf
+                        .partition_point(|&(_, c, _)| c <= target)
+                        .min(cdf.len() - 1);
+                    let lo = if i > 0 { cdf[i - 1].1 } else { 0.0 };
+                    let (id, hi, w) = cdf[i];
                     let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
-                    let e = &self.elems.elems[recv_cdf[i].0 as usize];
+                    let e = &self.elems.elems[id as usize];
                     let x = sample_triangle(&e.verts, u as f32, su[s][1]);
-                    let w = e.facing_weight(&self.elems.elems[j as usize]);
                     (x, Self::point_kernel(x, Some(e.normal), &src) / w)
                 }
-                End::Cluster { node, c, .. } => {
+                (End::Cluster { node, c, .. }, None) => {
                     let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
                     if bounds {
                         // The kernel's spread over the receiving cluster.
@@ -547,7 +547,7 @@ impl<'a> KernelCtx<'a> {
             }
         }
         let mut k = sum / n as f64;
-        if !recv_cdf.is_empty() {
+        if recv_cdf.is_some() {
             // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
             k = k.min(1.0);
         }
@@ -563,11 +563,11 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
-    /// The surfaces inside cluster `node` with a positive hand-out weight towards source
-    /// element `src` ([`Element::facing_weight`]), with the running sums of `A_k·w_k`.
+    /// The surfaces inside cluster `node` with a positive hand-out weight `w_k` towards source
+    /// element `src` ([`Element::facing_weight`]): `(surface, running sum of A_k·w_k, w_k)`.
     ///
     /// [`Element::facing_weight`]: super::element::Element::facing_weight
-    fn hand_out_cdf(&self, node: u32, src: u32) -> Vec<(u32, f64)> {
+    fn hand_out_cdf(&self, node: u32, src: u32) -> Vec<(u32, f64, f64)> {
         let el = self.elems;
         let se = &el.elems[src as usize];
         let mut out = Vec::new();
@@ -579,10 +579,10 @@ impl<'a> KernelCtx<'a> {
                 match e.kind {
                     Kind::Cluster => stack.push(c),
                     Kind::Surface => {
-                        let w = e.area as f64 * e.facing_weight(se);
+                        let w = e.facing_weight(se);
                         if w > 0.0 {
-                            acc += w;
-                            out.push((c, acc));
+                            acc += e.area as f64 * w;
+                            out.push((c, acc, w));
                         }
                     }
                 }

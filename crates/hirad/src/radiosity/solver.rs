@@ -183,7 +183,8 @@ struct Solver<'a> {
     rays: u64,
     /// Per cluster: range into `entries`.
     cl_ranges: Vec<(u32, u32)>,
-    /// Root surfaces in cluster tree order (push-pull's pass over the clusters' entries).
+    /// Root surfaces sorted by their surface's cluster node (push-pull's pass over the
+    /// clusters' entries).
     pp_order: Vec<u32>,
     entries: Vec<Entry>,
     /// Per element: irradiance (channel sum) gathered from cluster sources.
@@ -252,6 +253,8 @@ impl<'a> Solver<'a> {
             threads: rayon::current_num_threads(),
             ..Default::default()
         };
+        let mut pp_order: Vec<u32> = el.roots().collect();
+        pp_order.sort_by_key(|&r| (tree.surface_node[el.elems[r as usize].tri as usize], r));
         let mut s = Solver {
             scene,
             tree,
@@ -268,7 +271,7 @@ impl<'a> Solver<'a> {
             peak: 0,
             rays: 0,
             cl_ranges: vec![(0, 0); nc],
-            pp_order: Vec::new(),
+            pp_order,
             entries: Vec::new(),
             root_irr: Vec::new(),
             has_sun_sky,
@@ -681,7 +684,6 @@ impl<'a> Solver<'a> {
     /// Push irradiance down to the leaves (through clusters, then surface quadtrees), compute
     /// leaf radiosity, pull area averages up; accumulate the power balance.
     fn push_pull(&mut self) {
-        let nc = self.el.num_clusters;
         let roots = self.el.roots();
         let el = &self.el;
         let tree = self.tree;
@@ -692,13 +694,8 @@ impl<'a> Solver<'a> {
         let reception = self.cfg.cluster_receive;
         let emission = self.cfg.cluster_emission;
         // Irradiance handed down by the clusters above each root surface, computed in cluster
-        // tree order (roots sorted by their surface's node) so that the entries of the clusters
-        // that consecutive surfaces share stay in cache.
-        if self.pp_order.len() != roots.len() {
-            let mut order: Vec<u32> = roots.clone().collect();
-            order.sort_by_key(|&r| (tree.surface_node[el.elems[r as usize].tri as usize], r));
-            self.pp_order = order;
-        }
+        // tree order (`pp_order`) so that the entries of the clusters that consecutive surfaces
+        // share stay in cache.
         let from_clusters: Vec<(DVec3, f64)> = self
             .pp_order
             .par_iter()
@@ -768,7 +765,6 @@ impl<'a> Solver<'a> {
             let e = &self.el.elems[r as usize];
             pw.emitted += e.emission.as_dvec3().element_sum() * e.area as f64;
         }
-        let _ = nc;
         self.pull_clusters();
         pw.radiosity = self.total_power();
         pw.escaping = pw.radiosity - pw.gathered;
