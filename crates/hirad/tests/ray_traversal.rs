@@ -394,3 +394,60 @@ fn boxes_with_slack_still_exact() {
     let occ = check_against_brute(&scene, &tree, &segs);
     assert!(occ > 100, "{occ}");
 }
+
+/// Segments lying in the plane of a floor (a 48×48 grid of quads at y = 0.25 with boxes
+/// standing on it) are coplanar with every floor triangle, which the watertight test never
+/// reports as hit: the traversal skips the flat floor boxes such a ray touches and tests almost
+/// no triangles, and still agrees with brute force (the boxes standing on the floor occlude).
+#[test]
+fn rays_in_a_floor_plane_skip_the_floor() {
+    let n = 48usize;
+    let y = 0.25f32;
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            pos.push(Vec3::new(i as f32, y, j as f32));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    // Upright quads standing on the floor (their bottom edge on it).
+    let mut g = SplitMix64::new(7);
+    for _ in 0..12 {
+        let x = 2.0 + 44.0 * g.next_f32();
+        let z = 2.0 + 44.0 * g.next_f32();
+        let b = pos.len() as u32;
+        pos.extend([
+            Vec3::new(x, y, z),
+            Vec3::new(x + 1.5, y, z),
+            Vec3::new(x + 1.5, y + 1.0, z),
+            Vec3::new(x, y + 1.0, z),
+        ]);
+        tris.push([b, b + 1, b + 2]);
+        tris.push([b, b + 2, b + 3]);
+    }
+    let scene = scene_from(pos, tris);
+    let segs: Vec<Segment> = (0..2000)
+        .map(|_| {
+            let p = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
+            let q = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
+            Segment::between(p, q)
+        })
+        .collect();
+    let tree = ClusterTree::build(&scene, Strategy::Sah, &ClusterConfig::default());
+    let occ = check_against_brute(&scene, &tree, &segs);
+    assert!(occ > 100 && occ < 1900, "{occ}");
+    let rc = RayCaster::new(&scene, &tree);
+    let mut st = RayStats::default();
+    for s in &segs {
+        rc.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st);
+    }
+    // Without the skip a ray crossing ~24 cells would test dozens of floor triangles.
+    assert!(st.tris_per_ray() < 2.0, "{}", st.tris_per_ray());
+}

@@ -346,6 +346,9 @@ pub(super) struct Ray4 {
     inv: [[f32; 4]; 3],
     near: [usize; 3],
     far: [usize; 3],
+    /// Bit `a` set when the direction's component `a` is zero (the ray lies in a plane of
+    /// constant coordinate `a`).
+    in_plane: u32,
 }
 
 impl Ray4 {
@@ -366,11 +369,35 @@ impl Ray4 {
             self.near[a] = r.near[a] % 6;
             self.far[a] = r.far[a] % 6;
         }
+        self.in_plane = (0..3).filter(|&a| r.d[a] == 0.0).fold(0, |m, a| m | 1 << a);
+    }
+
+    /// Lanes of `g` whose box is flat along an axis in which the ray lies in the box's plane
+    /// (`min = max = origin` there, direction component zero). Everything in such a box lies
+    /// in that plane, so it is coplanar with the ray: the watertight test computes all three
+    /// sheared edge functions as exactly zero (the in-plane coordinate is one of the two
+    /// sheared axes and its shear constant is zero) and reports no hit. Skipping these boxes
+    /// changes no result; it keeps a ray running along a floor from visiting every floor cell
+    /// it passes (the slab test itself must accept them: the ray touches them).
+    #[inline(always)]
+    fn flat_in_plane(&self, g: &Group) -> u32 {
+        let mut m = 0;
+        for a in 0..3 {
+            if self.in_plane & (1 << a) != 0 {
+                let o = self.o[a][0];
+                for lane in 0..4 {
+                    if g.b[a][lane] == o && g.b[a + 3][lane] == o {
+                        m |= 1 << lane;
+                    }
+                }
+            }
+        }
+        m
     }
 
     /// Slab test of the four boxes of `g` clipped to `[tmin, tmax]`: bit `i` of the mask is
-    /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit; `tn` its entry
-    /// distance.
+    /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit and not ruled out by
+    /// [`Ray4::flat_in_plane`]; `tn` its entry distance.
     #[inline(always)]
     pub(super) fn test(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [f32; 4]) {
         #[cfg(target_arch = "x86_64")]
@@ -397,7 +424,10 @@ impl Ray4 {
                     tf = _mm_min_ps(t1, tf);
                 }
                 let hit = _mm_cmple_ps(tn, _mm_mul_ps(tf, _mm_set1_ps(BOX_SLACK)));
-                let mask = _mm_movemask_ps(hit) as u32;
+                let mut mask = _mm_movemask_ps(hit) as u32;
+                if self.in_plane != 0 {
+                    mask &= !self.flat_in_plane(g);
+                }
                 let mut out = [0f32; 4];
                 _mm_storeu_ps(out.as_mut_ptr(), tn);
                 (mask, out)
@@ -420,6 +450,9 @@ impl Ray4 {
                     mask |= 1 << lane;
                 }
                 out[lane] = tn;
+            }
+            if self.in_plane != 0 {
+                mask &= !self.flat_in_plane(g);
             }
             (mask, out)
         }

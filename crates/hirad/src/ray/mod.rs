@@ -14,7 +14,10 @@
 //! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
 //! with its f64 hit distance decides every candidate); the box test is conservative
 //! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
-//! are the strategy's boxes grown to contain their contents exactly, so the result equals a
+//! are the strategy's boxes grown to contain their contents exactly; a box flat along an axis
+//! in whose plane the ray lies is skipped, as its contents are coplanar with the ray and the
+//! watertight test never reports them ([`layout`]'s `Ray4::flat_in_plane`: a segment along a
+//! floor no longer visits every floor cell it passes). So the result equals a
 //! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
 //! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
 //! strategies.
