@@ -318,16 +318,20 @@ impl Layout {
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p = if r & LEAF != 0 {
-                self.packets.as_ptr().wrapping_add(leaf_run(r).0) as *const i8
-            } else {
-                self.groups.as_ptr().wrapping_add(r as usize) as *const i8
-            };
             // SAFETY: a prefetch is only a hint and never faults, whatever the address.
             #[allow(unused_unsafe)]
             unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(p);
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+                if r & LEAF != 0 {
+                    // A packet spans three cache lines (160 bytes, at offset 0 or 32 of a line).
+                    let p = self.packets.as_ptr().wrapping_add(leaf_run(r).0) as *const i8;
+                    _mm_prefetch::<_MM_HINT_T0>(p);
+                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
+                } else {
+                    let p = self.groups.as_ptr().wrapping_add(r as usize) as *const i8;
+                    _mm_prefetch::<_MM_HINT_T0>(p);
+                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+                }
             }
         }
         #[cfg(not(target_arch = "x86_64"))]

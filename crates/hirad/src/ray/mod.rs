@@ -686,6 +686,16 @@ fn push_sorted<T: Copy>(
             l.prefetch(child[i]);
             stack.push(entry(child[i], tn[i]));
         }
+        2 => {
+            let i = mask.trailing_zeros() as usize;
+            let j = (mask & (mask - 1)).trailing_zeros() as usize;
+            // Farthest first; on a tie the higher lane first, as below.
+            let (a, b) = if tn[i] <= tn[j] { (j, i) } else { (i, j) };
+            l.prefetch(child[a]);
+            stack.push(entry(child[a], tn[a]));
+            l.prefetch(child[b]);
+            stack.push(entry(child[b], tn[b]));
+        }
         _ => {
             // Lanes sorted by decreasing distance (farthest pushed first).
             let mut idx = [0usize; 4];
