@@ -10,14 +10,20 @@
 //!   triangle run directly (bit 31 set, 5 bits of count, 26 bits of first packet), so
 //!   reaching a leaf reads only its triangles.
 //! - Triangles are stored four to a [`Packet`] (structure of arrays, one SIMD edge test for
-//!   four triangles); each node's run starts a new packet, unused lanes are masked out.
+//!   four triangles); each node's run starts a new packet, unused lanes are masked out. Runs of
+//!   [`WIDE_MIN`] triangles or more (surfaces attached at inner nodes of `kdt`, `obt`, `okdt`,
+//!   large leaves) are stored sixteen to a [`Wide`] packet instead, tested in one AVX-512 pass
+//!   where the CPU has it (four SSE passes otherwise). Which array a run lives in follows
+//!   from its length alone.
 //! - Groups and triangle runs are in depth-first pre-order, so a subtree is contiguous.
 //!
 //! Boxes are the strategy's boxes grown to contain their contents exactly (strategies may
 //! leave an f32 slack that `validate` tolerates; a ray grazing such a triangle must still
 //! reach it, so that the result equals brute force for any tree).
 
-use super::watertight::{candidates4, intersect, tri_of, RayPre, Tri4, BOX_SLACK};
+use super::watertight::{
+    candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4, BOX_SLACK,
+};
 use crate::cluster::ClusterTree;
 use crate::geom::Aabb;
 use crate::scene::Scene;
@@ -88,8 +94,64 @@ pub(super) struct Layout {
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
     pub groups: Vec<Group>,
-    /// Triangles in node order, four to a packet.
+    /// Triangles of runs shorter than [`WIDE_MIN`], in node order, four to a packet.
     pub packets: Vec<Packet>,
+    /// Triangles of runs of [`WIDE_MIN`] or more, in node order, sixteen to a packet.
+    pub wide: Vec<Wide>,
+}
+
+/// Shortest triangle run stored in [`Wide`] packets.
+pub(super) const WIDE_MIN: usize = 9;
+
+/// Sixteen triangles (structure of arrays) and their scene ids (`u32::MAX` in unused lanes).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(super) struct Wide {
+    pub v: Tri16,
+    pub id: [u32; 16],
+}
+
+/// Mask of the lanes used by wide packet `k` of a run of `n` triangles.
+#[inline(always)]
+pub(super) fn wide_mask(n: usize, k: usize) -> u32 {
+    let rest = n - 16 * k;
+    if rest >= 16 {
+        0xFFFF
+    } else {
+        (1 << rest) - 1
+    }
+}
+
+/// Whether the AVX-512 edge test can run here (checked once, then cached by std).
+#[inline(always)]
+fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Candidate mask of the lanes `valid` of a wide packet (see
+/// [`candidates4`](super::watertight::candidates4)).
+#[inline(always)]
+fn wide_candidates(r: &RayPre, w: &Wide, valid: u32, avx512: bool) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if avx512 {
+        // SAFETY: `avx512` is true only when the CPU has AVX-512F (`has_avx512`).
+        return unsafe { super::watertight::candidates16_avx512(r, &w.v) } & valid;
+    }
+    let _ = avx512;
+    let mut m = 0;
+    for q in 0..4 {
+        if valid >> (4 * q) & 0xF != 0 {
+            m |= candidates4_at(r, &w.v, 4 * q) << (4 * q);
+        }
+    }
+    m & valid
 }
 
 /// Four triangles (structure of arrays) and their scene ids (`u32::MAX` in unused lanes).
@@ -151,18 +213,24 @@ impl Layout {
         // Pass 1: references, group and triangle positions.
         let mut refs = vec![NONE; n];
         let mut tri_pos = vec![0usize; n];
-        let (mut ng, mut npk) = (0usize, 0usize);
+        let (mut ng, mut npk, mut nw) = (0usize, 0usize, 0usize);
         for &id in &order {
             let c = kids(id).count();
             let t = surfs(id).count();
-            tri_pos[id as usize] = npk;
-            if c == 0 && t <= LEAF_MAX_TRIS && npk <= LEAF_MAX_START {
-                refs[id as usize] = leaf_ref(npk, t);
+            let pos = if t >= WIDE_MIN { &mut nw } else { &mut npk };
+            let start = *pos;
+            tri_pos[id as usize] = start;
+            *pos += if t >= WIDE_MIN {
+                t.div_ceil(16)
+            } else {
+                t.div_ceil(4)
+            };
+            if c == 0 && t <= LEAF_MAX_TRIS && start <= LEAF_MAX_START {
+                refs[id as usize] = leaf_ref(start, t);
             } else {
                 refs[id as usize] = ng as u32;
                 ng += c.div_ceil(4).max(1);
             }
-            npk += t.div_ceil(4);
         }
         // Boxes grown to their contents, children first.
         let mut bound = vec![Aabb::EMPTY; n];
@@ -184,6 +252,13 @@ impl Layout {
             id: [u32::MAX; 4],
         };
         let mut packets = vec![empty; npk];
+        let mut wide = vec![
+            Wide {
+                v: [[0.0; 16]; 9],
+                id: [u32::MAX; 16],
+            };
+            nw
+        ];
         for &id in &order {
             let r = refs[id as usize];
             if r & LEAF == 0 {
@@ -206,15 +281,17 @@ impl Layout {
                 g.num_tris = surfs(id).count() as u32;
                 g.num_groups = num_groups as u32;
             }
+            let long = surfs(id).count() >= WIDE_MIN;
             for (i, s) in surfs(id).enumerate() {
-                let p = &mut packets[tri_pos[id as usize] + i / 4];
-                let lane = i % 4;
-                for (k, v) in scene.tri_vertices(s as usize).iter().enumerate() {
-                    for a in 0..3 {
-                        p.v[3 * k + a][lane] = v[a];
-                    }
+                let tv = scene.tri_vertices(s as usize);
+                let at = tri_pos[id as usize];
+                if long {
+                    let w = &mut wide[at + i / 16];
+                    put(&mut w.v, &mut w.id, i % 16, tv, s);
+                } else {
+                    let p = &mut packets[at + i / 4];
+                    put(&mut p.v, &mut p.id, i % 4, tv, s);
                 }
-                p.id[lane] = s;
             }
         }
         let b = &bound[0];
@@ -223,6 +300,7 @@ impl Layout {
             root: Some(refs[0]),
             groups,
             packets,
+            wide,
         }
     }
 
@@ -230,6 +308,7 @@ impl Layout {
     pub(super) fn memory_bytes(&self) -> usize {
         self.groups.len() * std::mem::size_of::<Group>()
             + self.packets.len() * std::mem::size_of::<Packet>()
+            + self.wide.len() * std::mem::size_of::<Wide>()
     }
 
     /// The triangle run `(first packet, count)` of a reference and, for a node with groups, its
@@ -262,6 +341,9 @@ impl Layout {
         tmax: f32,
         tested: &mut u64,
     ) -> bool {
+        if n >= WIDE_MIN {
+            return self.any_hit_wide(r, ps, n, tmin, tmax, tested);
+        }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
             let valid = lane_mask(n, k);
@@ -290,26 +372,48 @@ impl Layout {
         best_t: &mut f32,
         best: &mut Option<(u32, f32, f32)>,
     ) {
+        if n >= WIDE_MIN {
+            let avx512 = has_avx512();
+            for k in 0..n.div_ceil(16) {
+                let w = &self.wide[ps + k];
+                let m = wide_candidates(r, w, wide_mask(n, k), avx512);
+                closest_of(r, &w.v, &w.id, m, tmin, best_t, best);
+            }
+            return;
+        }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
-            let mut m = candidates4(r, &p.v) & lane_mask(n, k);
+            let m = candidates4(r, &p.v) & lane_mask(n, k);
+            closest_of(r, &p.v, &p.id, m, tmin, best_t, best);
+        }
+    }
+
+    /// [`Layout::any_hit`] of a run stored in wide packets.
+    #[inline(never)]
+    fn any_hit_wide(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        tmax: f32,
+        tested: &mut u64,
+    ) -> bool {
+        let avx512 = has_avx512();
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let valid = wide_mask(n, k);
+            *tested += valid.count_ones() as u64;
+            let mut m = wide_candidates(r, w, valid, avx512);
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                if let Some((t, u, v)) = intersect(r, &tri_of(&p.v, i), tmin, *best_t) {
-                    let id = p.id[i];
-                    let better = match *best {
-                        None => true,
-                        Some(_) if t < *best_t => true,
-                        Some((bid, _, _)) => id < bid,
-                    };
-                    if better {
-                        *best_t = t;
-                        *best = Some((id, u, v));
-                    }
+                if intersect(r, &tri_of(&w.v, i), tmin, tmax).is_some() {
+                    return true;
                 }
             }
         }
+        false
     }
 
     /// Hint the cache to load what visiting `r` reads first.
@@ -322,8 +426,14 @@ impl Layout {
             #[allow(unused_unsafe)]
             unsafe {
                 if r & LEAF != 0 {
-                    // A packet spans three cache lines (160 bytes, at offset 0 or 32 of a line).
-                    let p = self.packets.as_ptr().wrapping_add(leaf_run(r).0) as *const i8;
+                    // A packet spans three cache lines (160 bytes, at offset 0 or 32 of a line);
+                    // of a wide packet, the first three.
+                    let (s, n) = leaf_run(r);
+                    let p = if n >= WIDE_MIN {
+                        self.wide.as_ptr().wrapping_add(s) as *const i8
+                    } else {
+                        self.packets.as_ptr().wrapping_add(s) as *const i8
+                    };
                     _mm_prefetch::<_MM_HINT_T0>(p);
                     _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
                     _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
@@ -336,6 +446,52 @@ impl Layout {
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = r;
+    }
+}
+
+/// Store triangle `id` with corners `tv` in `lane` of a packet.
+fn put<const N: usize>(
+    v: &mut [[f32; N]; 9],
+    ids: &mut [u32; N],
+    lane: usize,
+    tv: [glam::Vec3; 3],
+    id: u32,
+) {
+    for (k, p) in tv.iter().enumerate() {
+        for a in 0..3 {
+            v[3 * k + a][lane] = p[a];
+        }
+    }
+    ids[lane] = id;
+}
+
+/// Closest hit among the candidate lanes `m` of a packet (four or sixteen wide) nearer than
+/// `*best_t` (see [`Layout::closest_hit`]).
+#[inline(always)]
+fn closest_of<const N: usize>(
+    r: &RayPre,
+    v: &[[f32; N]; 9],
+    ids: &[u32; N],
+    mut m: u32,
+    tmin: f32,
+    best_t: &mut f32,
+    best: &mut Option<(u32, f32, f32)>,
+) {
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if let Some((t, u, w)) = intersect(r, &tri_of(v, i), tmin, *best_t) {
+            let id = ids[i];
+            let better = match *best {
+                None => true,
+                Some(_) if t < *best_t => true,
+                Some((bid, _, _)) => id < bid,
+            };
+            if better {
+                *best_t = t;
+                *best = Some((id, u, w));
+            }
+        }
     }
 }
 

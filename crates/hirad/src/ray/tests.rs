@@ -240,3 +240,66 @@ fn group_test_equals_scalar_slab() {
     assert!(hits > 6000, "{hits}");
     assert!(skipped > 50, "{skipped}");
 }
+
+#[test]
+fn long_runs_go_to_wide_packets() {
+    // A root holding 20 triangles of its own (a run of two wide packets: 16 + 4 lanes) and a
+    // leaf child with 3 (one four-wide packet). Every triangle is found, with its id, by
+    // closest hit, single occlusion and the stream.
+    let n = 23usize;
+    let raw = RawScene {
+        name: "long".into(),
+        positions: (0..n)
+            .flat_map(|i| {
+                let x = i as f32 * 2.0;
+                [
+                    Vec3::new(x, 0.0, 0.0),
+                    Vec3::new(x + 1.0, 0.0, 0.0),
+                    Vec3::new(x, 1.0, 0.0),
+                ]
+            })
+            .collect(),
+        triangles: (0..n as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect(),
+        tri_material: vec![0; n],
+        tri_object: vec![0; n],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    let mut b = BuildTree::default();
+    let mut leaf_box = s.tri_bbox(20);
+    leaf_box.grow_box(&s.tri_bbox(22));
+    let leaf = b.push(BuildNode {
+        bbox: leaf_box,
+        children: vec![],
+        surfaces: vec![20, 21, 22],
+    });
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: vec![leaf],
+        surfaces: (0..20).collect(),
+    });
+    let t = ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let l = &rc.layout;
+    assert_eq!((l.wide.len(), l.packets.len()), (2, 1));
+    assert_eq!(l.wide[1].id[..5], [16, 17, 18, 19, u32::MAX]);
+    assert_eq!(l.packets[0].id, [20, 21, 22, u32::MAX]);
+    let mut segs = Vec::new();
+    for i in 0..n as u32 {
+        let o = Vec3::new(i as f32 * 2.0 + 0.25, 0.25, 1.0);
+        let h = rc.closest(o, -Vec3::Z, 0.0, 2.0).unwrap();
+        assert_eq!(h.tri, i);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!(rc.occluded(o, -Vec3::Z, 0.0, 2.0));
+        // Beside the triangle (in the gap to the next one): nothing.
+        let miss = o + Vec3::new(1.0, 0.0, 0.0);
+        assert!(!rc.occluded(miss, -Vec3::Z, 0.0, 2.0));
+        segs.push(Segment::between(o, o - 2.0 * Vec3::Z));
+        segs.push(Segment::between(miss, miss - 2.0 * Vec3::Z));
+    }
+    let out = rc.occluded_batch(&segs);
+    assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
+}

@@ -186,9 +186,12 @@ pub fn intersect(r: &RayPre, tri: &TriVerts, tmin: f32, tmax: f32) -> Option<(f3
 /// `k` of the triangle in `lane`.
 pub type Tri4 = [[f32; 4]; 9];
 
-/// The triangle of `lane` of a [`Tri4`].
+/// Sixteen triangles in structure-of-arrays form, as [`Tri4`].
+pub type Tri16 = [[f32; 16]; 9];
+
+/// The triangle of `lane` of a structure-of-arrays block ([`Tri4`], [`Tri16`]).
 #[inline(always)]
-pub fn tri_of(p: &Tri4, lane: usize) -> TriVerts {
+pub fn tri_of<const N: usize>(p: &[[f32; N]; 9], lane: usize) -> TriVerts {
     std::array::from_fn(|i| p[i][lane])
 }
 
@@ -199,12 +202,21 @@ pub fn tri_of(p: &Tri4, lane: usize) -> TriVerts {
 /// the edge functions are bit-identical to the scalar test's.
 #[inline(always)]
 pub fn candidates4(r: &RayPre, p: &Tri4) -> u32 {
+    candidates4_at(r, p, 0)
+}
+
+/// [`candidates4`] for lanes `off..off + 4` of a wider block.
+#[inline(always)]
+pub fn candidates4_at<const N: usize>(r: &RayPre, p: &[[f32; N]; 9], off: usize) -> u32 {
+    assert!(off + 4 <= N);
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::*;
-        // SAFETY: SSE is part of the x86_64 baseline; unaligned loads of [f32; 4].
+        // SAFETY: SSE is part of the x86_64 baseline; unaligned loads of four f32 at
+        // `off..off + 4`, inside every row (asserted above).
         #[allow(unused_unsafe)]
         unsafe {
+            let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr().add(off));
             let ox = _mm_set1_ps(r.o[r.kx]);
             let oy = _mm_set1_ps(r.o[r.ky]);
             let oz = _mm_set1_ps(r.o[r.kz]);
@@ -213,9 +225,9 @@ pub fn candidates4(r: &RayPre, p: &Tri4) -> u32 {
             let mut x = [_mm_setzero_ps(); 3];
             let mut y = [_mm_setzero_ps(); 3];
             for k in 0..3 {
-                let px = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.kx].as_ptr()), ox);
-                let py = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.ky].as_ptr()), oy);
-                let pz = _mm_sub_ps(_mm_loadu_ps(p[3 * k + r.kz].as_ptr()), oz);
+                let px = _mm_sub_ps(ld(3 * k + r.kx), ox);
+                let py = _mm_sub_ps(ld(3 * k + r.ky), oy);
+                let pz = _mm_sub_ps(ld(3 * k + r.kz), oz);
                 x[k] = _mm_sub_ps(px, _mm_mul_ps(sx, pz));
                 y[k] = _mm_sub_ps(py, _mm_mul_ps(sy, pz));
             }
@@ -243,7 +255,7 @@ pub fn candidates4(r: &RayPre, p: &Tri4) -> u32 {
     {
         let mut m = 0;
         for lane in 0..4 {
-            let t = tri_of(p, lane);
+            let t = tri_of(p, off + lane);
             let e = |k: usize| {
                 let q = [
                     t[3 * k] - r.o[0],
@@ -264,6 +276,49 @@ pub fn candidates4(r: &RayPre, p: &Tri4) -> u32 {
         }
         m
     }
+}
+
+/// [`candidates4`] for the sixteen triangles of a [`Tri16`] in one pass of AVX-512 (the same
+/// f32 operations in the same order, without fused multiply-adds: bit-identical edge
+/// functions, the same mask as four calls of [`candidates4_at`]).
+///
+/// # Safety
+/// The CPU must support AVX-512F (`is_x86_feature_detected!("avx512f")`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub unsafe fn candidates16_avx512(r: &RayPre, p: &Tri16) -> u32 {
+    use core::arch::x86_64::*;
+    // SAFETY (loads): every row of a Tri16 holds sixteen f32; unaligned loads.
+    let ld = |row: usize| unsafe { _mm512_loadu_ps(p[row].as_ptr()) };
+    let ox = _mm512_set1_ps(r.o[r.kx]);
+    let oy = _mm512_set1_ps(r.o[r.ky]);
+    let oz = _mm512_set1_ps(r.o[r.kz]);
+    let sx = _mm512_set1_ps(r.sx);
+    let sy = _mm512_set1_ps(r.sy);
+    let mut x = [_mm512_setzero_ps(); 3];
+    let mut y = [_mm512_setzero_ps(); 3];
+    for k in 0..3 {
+        let px = _mm512_sub_ps(ld(3 * k + r.kx), ox);
+        let py = _mm512_sub_ps(ld(3 * k + r.ky), oy);
+        let pz = _mm512_sub_ps(ld(3 * k + r.kz), oz);
+        x[k] = _mm512_sub_ps(px, _mm512_mul_ps(sx, pz));
+        y[k] = _mm512_sub_ps(py, _mm512_mul_ps(sy, pz));
+    }
+    let u = _mm512_sub_ps(_mm512_mul_ps(x[2], y[1]), _mm512_mul_ps(y[2], x[1]));
+    let v = _mm512_sub_ps(_mm512_mul_ps(x[0], y[2]), _mm512_mul_ps(y[0], x[2]));
+    let w = _mm512_sub_ps(_mm512_mul_ps(x[1], y[0]), _mm512_mul_ps(y[1], x[0]));
+    let z = _mm512_setzero_ps();
+    let zero = _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(u, z)
+        | _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(v, z)
+        | _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(w, z);
+    let neg = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(u, z)
+        | _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v, z)
+        | _mm512_cmp_ps_mask::<_CMP_LT_OQ>(w, z);
+    let pos = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(u, z)
+        | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(v, z)
+        | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(w, z);
+    (!(neg & pos) | zero) as u32
 }
 
 /// Convenience: intersect a ray with a triangle given by its corners.
@@ -317,6 +372,42 @@ mod tests {
                 intersect_triangle(tri, p, -Vec3::Z, 0.0, 10.0).is_some(),
                 "{p}"
             );
+        }
+    }
+
+    #[test]
+    fn sixteen_lane_candidates_equal_four_lane_ones() {
+        // The AVX-512 edge test gives bit for bit the mask of four SSE passes (same f32
+        // operations), on random rays and triangles with coordinates on a coarse grid so that
+        // edge functions of exactly zero (the f64 re-check) occur.
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            let mut g = crate::rng::SplitMix64::new(9);
+            let c = |g: &mut crate::rng::SplitMix64| (g.next_u64() % 7) as f32 * 0.5 - 1.5;
+            let (mut zero_lanes, mut set) = (0, 0u32);
+            for _ in 0..5000 {
+                let o = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+                let d = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+                let Some(r) = RayPre::new(o, d) else { continue };
+                let mut p: Tri16 = [[0.0; 16]; 9];
+                for row in p.iter_mut() {
+                    for x in row.iter_mut() {
+                        *x = c(&mut g);
+                    }
+                }
+                // SAFETY: AVX-512F was detected above.
+                let m16 = unsafe { candidates16_avx512(&r, &p) };
+                let m4 = (0..4).fold(0, |m, q| m | candidates4_at(&r, &p, 4 * q) << (4 * q));
+                assert_eq!(m16, m4);
+                set += m16.count_ones();
+                for lane in 0..16 {
+                    let t = tri_of(&p, lane);
+                    zero_lanes +=
+                        intersect(&r, &t, -1e30, 1e30).is_none() as u32 * (m16 >> lane & 1);
+                }
+            }
+            // Both kinds of lanes occur: candidates the scalar test rejects, and hits.
+            assert!(set > 10_000 && zero_lanes > 500, "{set} {zero_lanes}");
         }
     }
 
