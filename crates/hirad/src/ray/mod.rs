@@ -26,8 +26,10 @@
 //! occlusion as well; closest-hit queries also skip entries farther than the current hit.
 //! Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
 //! [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
-//! node of each in turn, so that the memory latency of one ray's next node (prefetched when
-//! it was pushed) overlaps with work on the others. Counters ([`RayStats`]) are compiled in
+//! node of each in turn, so that the memory latency of one ray's next node (prefetched at the
+//! end of the step before) overlaps with work on the others; it places the hit children on
+//! its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
+//! the sorted push, which random rays would make mispredict). Counters ([`RayStats`]) are compiled in
 //! only for the `*_stats` entry points (const generic), so the plain queries carry no
 //! counting cost.
 //!
@@ -247,26 +249,24 @@ impl Lane {
             return Step::Hit;
         }
         for g in &l.groups[g0..g0 + ng] {
-            let (mask, tn) = self.r4.test(g, self.tmin, self.tmax);
-            if self.len as usize + mask.count_ones() as usize > LANE_STACK {
+            let (mask, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+            let len = self.len as usize;
+            if len + 4 > LANE_STACK {
+                if mask == 0 {
+                    continue;
+                }
                 return Step::Overflow;
             }
-            let mut stack = LaneStack(self);
-            push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+            // Lanes not hit land above the new top, where they are overwritten later.
+            for (&r, &c) in rank.iter().zip(&g.child) {
+                self.stack[len + (r as usize & 3)] = c;
+            }
+            self.len += mask.count_ones();
+        }
+        if self.len > 0 {
+            l.prefetch(self.stack[self.len as usize - 1]);
         }
         Step::Continue
-    }
-}
-
-/// The stack of a [`Lane`] as a push target of [`push_sorted`].
-struct LaneStack<'a>(&'a mut Lane);
-
-impl PushStack<u32> for LaneStack<'_> {
-    #[inline(always)]
-    fn push(&mut self, x: u32) {
-        let l = &mut *self.0;
-        l.stack[l.len as usize] = x;
-        l.len += 1;
     }
 }
 

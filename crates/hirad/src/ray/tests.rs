@@ -303,3 +303,115 @@ fn long_runs_go_to_wide_packets() {
     let out = rc.occluded_batch(&segs);
     assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
 }
+
+#[test]
+fn ranked_push_order_equals_sorted_push() {
+    // The branch-free positions of `test_ranked` put the hit lanes in the order `push_sorted`
+    // pushes them (decreasing entry distance, ties: higher lane first), and the lanes that are
+    // not hit after them; ties of entry distances included (boxes sharing a near plane).
+    let mut g = crate::rng::SplitMix64::new(11);
+    let grid = |g: &mut crate::rng::SplitMix64| (g.next_u64() % 5) as f32 * 0.5 - 1.0;
+    let mut ties = 0;
+    for _ in 0..20000 {
+        // Origins on the grid: often inside several boxes, whose entry distances are then all
+        // tmin (ties).
+        let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+        let d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
+        let r = RayPre::new(o, d).unwrap();
+        let r4 = layout::Ray4::new(&r);
+        let mut grp = layout::Group::default();
+        for lane in 0..(g.next_u64() % 5) as usize {
+            let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+            let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+            let (lo, hi) = (a.min(b), a.max(b));
+            for c in 0..3 {
+                grp.b[c][lane] = lo[c];
+                grp.b[c + 3][lane] = hi[c];
+            }
+            grp.child[lane] = lane as u32;
+        }
+        let (mask, tn) = r4.test(&grp, 0.0, 100.0);
+        let (mask2, rank) = r4.test_ranked(&grp, 0.0, 100.0);
+        assert_eq!(mask, mask2);
+        let mut sorted: Stack<u32, 8> = Stack::new();
+        push_sorted(
+            &mut sorted,
+            &layout::Layout::default(),
+            mask,
+            &tn,
+            &grp.child,
+            |c, _| c,
+        );
+        let k = mask.count_ones() as usize;
+        let mut ranked = [u32::MAX; 4];
+        for i in 0..4 {
+            ranked[rank[i] as usize] = i as u32;
+        }
+        assert_eq!(sorted.top_mut(k), &ranked[..k], "{mask:b} {tn:?} {rank:?}");
+        let mut all = rank;
+        all.sort();
+        assert_eq!(all, [0, 1, 2, 3]);
+        ties +=
+            (0..4).any(|i| (0..i).any(|j| mask >> i & mask >> j & 1 == 1 && tn[i] == tn[j])) as u32;
+    }
+    assert!(ties > 500, "{ties}");
+}
+
+#[test]
+fn stream_overflow_falls_back_to_single_ray() {
+    // A root with 100 leaf children stacked along z: a ray along z through all their boxes
+    // but beside the triangles pushes more entries than a ray in flight can hold; the stream
+    // hands it to the single-ray traversal and the answers stay exact.
+    let n = 100u32;
+    let raw = RawScene {
+        name: "stack".into(),
+        positions: (0..n)
+            .flat_map(|i| {
+                let z = i as f32 * 0.1;
+                [
+                    Vec3::new(0.0, 0.0, z),
+                    Vec3::new(1.0, 0.0, z),
+                    Vec3::new(0.0, 1.0, z),
+                ]
+            })
+            .collect(),
+        triangles: (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
+        tri_material: vec![0; n as usize],
+        tri_object: vec![0; n as usize],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    let mut b = BuildTree::default();
+    let kids: Vec<u32> = (0..n)
+        .map(|i| {
+            b.push(BuildNode {
+                bbox: s.tri_bbox(i as usize),
+                children: vec![],
+                surfaces: vec![i],
+            })
+        })
+        .collect();
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: vec![],
+    });
+    let t = ClusterTree::from_build(b, n as usize, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let segs: Vec<Segment> = [(0.9, 0.9), (0.2, 0.2), (0.6, 0.3), (0.3, 0.75)]
+        .iter()
+        .flat_map(|&(x, y)| {
+            [
+                Segment::between(Vec3::new(x, y, -1.0), Vec3::new(x, y, 11.0)),
+                Segment::between(Vec3::new(x, y, 11.0), Vec3::new(x, y, -1.0)),
+            ]
+        })
+        .collect();
+    let brute: Vec<bool> = segs
+        .iter()
+        .map(|s| rc.occluded_brute(s.origin, s.dir, s.tmin, s.tmax))
+        .collect();
+    assert_eq!(brute, [false, false, true, true, true, true, false, false]);
+    assert_eq!(rc.occluded_batch(&segs), brute);
+}
