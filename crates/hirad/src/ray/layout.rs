@@ -111,17 +111,6 @@ pub(super) struct Wide {
     pub id: [u32; 16],
 }
 
-/// Mask of the lanes used by wide packet `k` of a run of `n` triangles.
-#[inline(always)]
-pub(super) fn wide_mask(n: usize, k: usize) -> u32 {
-    let rest = n - 16 * k;
-    if rest >= 16 {
-        0xFFFF
-    } else {
-        (1 << rest) - 1
-    }
-}
-
 /// Whether the AVX-512 edge test can run here (checked once, then cached by std).
 #[inline(always)]
 fn has_avx512() -> bool {
@@ -162,12 +151,13 @@ pub(super) struct Packet {
     pub id: [u32; 4],
 }
 
-/// Mask of the lanes used by packet `k` of a run of `n` triangles.
+/// Mask of the lanes used by packet `k` (of `W` lanes: 4 for a [`Packet`], 16 for a
+/// [`Wide`]) of a run of `n` triangles.
 #[inline(always)]
-pub(super) fn lane_mask(n: usize, k: usize) -> u32 {
-    let rest = n - 4 * k;
-    if rest >= 4 {
-        0xF
+pub(super) fn lane_mask<const W: usize>(n: usize, k: usize) -> u32 {
+    let rest = n - W * k;
+    if rest >= W {
+        u32::MAX >> (32 - W)
     } else {
         (1 << rest) - 1
     }
@@ -346,15 +336,10 @@ impl Layout {
         }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
-            let valid = lane_mask(n, k);
+            let valid = lane_mask::<4>(n, k);
             *tested += valid.count_ones() as u64;
-            let mut m = candidates4(r, &p.v) & valid;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                if intersect(r, &tri_of(&p.v, i), tmin, tmax).is_some() {
-                    return true;
-                }
+            if any_of(r, &p.v, candidates4(r, &p.v) & valid, tmin, tmax) {
+                return true;
             }
         }
         false
@@ -376,14 +361,14 @@ impl Layout {
             let avx512 = has_avx512();
             for k in 0..n.div_ceil(16) {
                 let w = &self.wide[ps + k];
-                let m = wide_candidates(r, w, wide_mask(n, k), avx512);
+                let m = wide_candidates(r, w, lane_mask::<16>(n, k), avx512);
                 closest_of(r, &w.v, &w.id, m, tmin, best_t, best);
             }
             return;
         }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
-            let m = candidates4(r, &p.v) & lane_mask(n, k);
+            let m = candidates4(r, &p.v) & lane_mask::<4>(n, k);
             closest_of(r, &p.v, &p.id, m, tmin, best_t, best);
         }
     }
@@ -402,15 +387,10 @@ impl Layout {
         let avx512 = has_avx512();
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
-            let valid = wide_mask(n, k);
+            let valid = lane_mask::<16>(n, k);
             *tested += valid.count_ones() as u64;
-            let mut m = wide_candidates(r, w, valid, avx512);
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                if intersect(r, &tri_of(&w.v, i), tmin, tmax).is_some() {
-                    return true;
-                }
+            if any_of(r, &w.v, wide_candidates(r, w, valid, avx512), tmin, tmax) {
+                return true;
             }
         }
         false
@@ -463,6 +443,20 @@ fn put<const N: usize>(
         }
     }
     ids[lane] = id;
+}
+
+/// True when one of the candidate lanes `m` of a packet (four or sixteen wide) is hit in
+/// `[tmin, tmax]`.
+#[inline(always)]
+fn any_of<const N: usize>(r: &RayPre, v: &[[f32; N]; 9], mut m: u32, tmin: f32, tmax: f32) -> bool {
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if intersect(r, &tri_of(v, i), tmin, tmax).is_some() {
+            return true;
+        }
+    }
+    false
 }
 
 /// Closest hit among the candidate lanes `m` of a packet (four or sixteen wide) nearer than

@@ -24,6 +24,55 @@ fn two_tri_scene() -> Scene {
     Scene::from_raw(raw, &SceneOptions::default()).unwrap()
 }
 
+/// A scene of `n` separate triangles, triangle `i` with the corners `corners(i)`.
+fn tri_scene(name: &str, n: usize, corners: impl Fn(usize) -> [Vec3; 3]) -> Scene {
+    let raw = RawScene {
+        name: name.into(),
+        positions: (0..n).flat_map(&corners).collect(),
+        triangles: (0..n as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect(),
+        tri_material: vec![0; n],
+        tri_object: vec![0; n],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// Unit right triangles in the plane z = 0, two apart along x.
+fn row_of_triangles(name: &str, n: usize) -> Scene {
+    tri_scene(name, n, |i| {
+        let x = i as f32 * 2.0;
+        [
+            Vec3::new(x, 0.0, 0.0),
+            Vec3::new(x + 1.0, 0.0, 0.0),
+            Vec3::new(x, 1.0, 0.0),
+        ]
+    })
+}
+
+/// A root whose children are one leaf per triangle.
+fn one_leaf_per_triangle(s: &Scene) -> ClusterTree {
+    let n = s.num_triangles();
+    let mut b = BuildTree::default();
+    let kids: Vec<u32> = (0..n)
+        .map(|i| {
+            b.push(BuildNode {
+                bbox: s.tri_bbox(i),
+                children: vec![],
+                surfaces: vec![i as u32],
+            })
+        })
+        .collect();
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: vec![],
+    });
+    ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default())
+}
+
 /// Root holding triangle 1 with one leaf child holding triangle 0.
 fn inner_surface_tree(scene: &Scene) -> ClusterTree {
     let mut b = BuildTree::default();
@@ -72,41 +121,8 @@ fn layout_is_depth_first_with_inner_surfaces() {
 #[test]
 fn packets_and_groups_hold_wide_nodes() {
     // A root with six leaf children of one triangle each: two groups (4 + 2 lanes).
-    let raw = RawScene {
-        name: "six".into(),
-        positions: (0..6)
-            .flat_map(|i| {
-                let x = i as f32 * 2.0;
-                [
-                    Vec3::new(x, 0.0, 0.0),
-                    Vec3::new(x + 1.0, 0.0, 0.0),
-                    Vec3::new(x, 1.0, 0.0),
-                ]
-            })
-            .collect(),
-        triangles: (0..6u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
-        tri_material: vec![0; 6],
-        tri_object: vec![0; 6],
-        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
-        ..Default::default()
-    };
-    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
-    let mut b = BuildTree::default();
-    let kids: Vec<u32> = (0..6)
-        .map(|i| {
-            b.push(BuildNode {
-                bbox: s.tri_bbox(i),
-                children: vec![],
-                surfaces: vec![i as u32],
-            })
-        })
-        .collect();
-    b.root = b.push(BuildNode {
-        bbox: s.bbox,
-        children: kids,
-        surfaces: vec![],
-    });
-    let t = ClusterTree::from_build(b, 6, Strategy::Sah, ClusterConfig::default());
+    let s = row_of_triangles("six", 6);
+    let t = one_leaf_per_triangle(&s);
     let rc = RayCaster::new(&s, &t);
     let l = &rc.layout;
     assert_eq!(l.groups.len(), 2);
@@ -247,27 +263,7 @@ fn long_runs_go_to_wide_packets() {
     // leaf child with 3 (one four-wide packet). Every triangle is found, with its id, by
     // closest hit, single occlusion and the stream.
     let n = 23usize;
-    let raw = RawScene {
-        name: "long".into(),
-        positions: (0..n)
-            .flat_map(|i| {
-                let x = i as f32 * 2.0;
-                [
-                    Vec3::new(x, 0.0, 0.0),
-                    Vec3::new(x + 1.0, 0.0, 0.0),
-                    Vec3::new(x, 1.0, 0.0),
-                ]
-            })
-            .collect(),
-        triangles: (0..n as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect(),
-        tri_material: vec![0; n],
-        tri_object: vec![0; n],
-        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
-        ..Default::default()
-    };
-    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    let s = row_of_triangles("long", n);
     let mut b = BuildTree::default();
     let mut leaf_box = s.tri_bbox(20);
     leaf_box.grow_box(&s.tri_bbox(22));
@@ -363,41 +359,15 @@ fn stream_overflow_falls_back_to_single_ray() {
     // but beside the triangles pushes more entries than a ray in flight can hold; the stream
     // hands it to the single-ray traversal and the answers stay exact.
     let n = 100u32;
-    let raw = RawScene {
-        name: "stack".into(),
-        positions: (0..n)
-            .flat_map(|i| {
-                let z = i as f32 * 0.1;
-                [
-                    Vec3::new(0.0, 0.0, z),
-                    Vec3::new(1.0, 0.0, z),
-                    Vec3::new(0.0, 1.0, z),
-                ]
-            })
-            .collect(),
-        triangles: (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
-        tri_material: vec![0; n as usize],
-        tri_object: vec![0; n as usize],
-        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
-        ..Default::default()
-    };
-    let s = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
-    let mut b = BuildTree::default();
-    let kids: Vec<u32> = (0..n)
-        .map(|i| {
-            b.push(BuildNode {
-                bbox: s.tri_bbox(i as usize),
-                children: vec![],
-                surfaces: vec![i],
-            })
-        })
-        .collect();
-    b.root = b.push(BuildNode {
-        bbox: s.bbox,
-        children: kids,
-        surfaces: vec![],
+    let s = tri_scene("stack", n as usize, |i| {
+        let z = i as f32 * 0.1;
+        [
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(1.0, 0.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ]
     });
-    let t = ClusterTree::from_build(b, n as usize, Strategy::Sah, ClusterConfig::default());
+    let t = one_leaf_per_triangle(&s);
     let rc = RayCaster::new(&s, &t);
     let segs: Vec<Segment> = [(0.9, 0.9), (0.2, 0.2), (0.6, 0.3), (0.3, 0.75)]
         .iter()
