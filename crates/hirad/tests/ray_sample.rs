@@ -3,7 +3,7 @@
 
 use glam::{DVec3, Vec3};
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
-use hirad::ray::sample::{sample_pairs, sample_segments, SurfaceSampler};
+use hirad::ray::sample::{export_segments, sample_pairs, sample_segments, SurfaceSampler};
 use hirad::ray::{RayCaster, Segment};
 use hirad::scene::{Material, RawScene, Scene, SceneOptions};
 
@@ -66,6 +66,38 @@ fn spec_pairs_on_two_triangles() {
         + DVec3::new(2.0, 0.0, 1.0) * (s1 * (1.0 - 0.9710027535867962))
         + DVec3::new(0.0, 2.0, 1.0) * (s1 * 0.9710027535867962);
     assert!((pairs[0].a.p - pa).abs().max_element() < 1e-12);
+}
+
+#[test]
+fn export_writes_the_triangles_and_segments() {
+    // The exchange file of `raybench --export`: counts, corners in scene order, then the
+    // segments bit for bit (origin, direction, tmin, tmax) — here the spec's first two pairs.
+    let scene = spec_scene();
+    let segs = sample_segments(&scene, 2, 1);
+    let d = tempfile::tempdir().unwrap();
+    let path = d.path().join("segs.bin");
+    export_segments(&path, &scene, &segs).unwrap();
+    let b = std::fs::read(&path).unwrap();
+    assert_eq!(b.len(), 4 + 2 * 36 + 4 + 2 * 32);
+    let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let f32_at = |o: usize| f32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    assert_eq!(u32_at(0), 2);
+    let corners: Vec<f32> = (0..18).map(|k| f32_at(4 + 4 * k)).collect();
+    assert_eq!(
+        &corners[9..],
+        &[0.0, 0.0, 1.0, 2.0, 0.0, 1.0, 0.0, 2.0, 1.0]
+    );
+    assert_eq!(u32_at(76), 2);
+    for (k, s) in segs.iter().enumerate() {
+        let v: Vec<f32> = (0..8).map(|i| f32_at(80 + 32 * k + 4 * i)).collect();
+        let want = [
+            s.origin.x, s.origin.y, s.origin.z, s.dir.x, s.dir.y, s.dir.z, s.tmin, s.tmax,
+        ];
+        assert_eq!(v, want);
+    }
+    assert!((f32_at(80) - 0.050083265).abs() < 1e-7);
+    // Nothing else is left in the directory (atomic write).
+    assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
 }
 
 #[test]

@@ -33,6 +33,11 @@ pub struct Args {
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
     #[arg(long)]
     pub brute: bool,
+    /// Also write the triangles and segments to FILE, for casting the same segments with
+    /// another program (little-endian: u32 triangle count, 9 f32 per triangle in scene order,
+    /// u32 segment count, 8 f32 per segment: origin, direction, tmin, tmax)
+    #[arg(long, value_name = "FILE")]
+    pub export: Option<std::path::PathBuf>,
 }
 
 /// Result of one strategy.
@@ -95,6 +100,9 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let segs = sample::sample_segments(&scene, args.pairs, args.seed);
     let sample_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if let Some(p) = &args.export {
+        sample::export_segments(p, &scene, &segs)?;
+    }
     let cfg = ClusterConfig::default();
     let bars = crate::progress::Bars::new(g.quiet || g.json);
     bars.start("raybench", strategies.len() as u64);

@@ -127,3 +127,35 @@ pub fn sample_segments(scene: &Scene, n: usize, seed: u64) -> Vec<Segment> {
         .map(|p| p.segment)
         .collect()
 }
+
+/// Write the scene's triangles and `segs` in the raw exchange format of `hirad raybench
+/// --export`, so that another program (e.g. `benches/embree/`) casts the same segments through
+/// the same triangles. Little-endian: `u32` triangle count, then per triangle its three corners
+/// as 9 `f32` (scene order); `u32` segment count, then per segment 8 `f32`: origin, direction,
+/// `tmin`, `tmax`. Written atomically.
+pub fn export_segments(
+    path: &std::path::Path,
+    scene: &Scene,
+    segs: &[Segment],
+) -> crate::Result<()> {
+    crate::io::write_atomic(path, |w| {
+        w.write_all(&(scene.num_triangles() as u32).to_le_bytes())?;
+        for i in 0..scene.num_triangles() {
+            for c in scene.tri_vertices(i) {
+                for x in c.to_array() {
+                    w.write_all(&x.to_le_bytes())?;
+                }
+            }
+        }
+        w.write_all(&(segs.len() as u32).to_le_bytes())?;
+        for s in segs {
+            let v = [
+                s.origin.x, s.origin.y, s.origin.z, s.dir.x, s.dir.y, s.dir.z, s.tmin, s.tmax,
+            ];
+            for x in v {
+                w.write_all(&x.to_le_bytes())?;
+            }
+        }
+        Ok(())
+    })
+}
