@@ -455,7 +455,7 @@ fn depth_limits() {
         assert!(d as usize <= cfg.max_depth + 9, "{s}: depth {d}");
     }
     // The binary SAH tree (width 2) alone needs 27 levels here; with max_depth 16 the median
-    // splits from depth 8 on bound it by 8 + ⌈log2 400⌉. The default 4-wide collapse of the
+    // splits from depth 8 on bound it by 8 + ⌈log2 400⌉. The default 8-wide collapse of the
     // same tree keeps its leaves and removes inner levels (regression golden below).
     let binary = ClusterConfig {
         sah_width: 2,
@@ -473,7 +473,7 @@ fn depth_limits() {
     assert!(sah
         .nodes
         .iter()
-        .all(|n| n.num_surfaces <= 4 && n.num_children <= 4));
+        .all(|n| n.num_surfaces <= 4 && n.num_children <= 8));
     // Collapsing keeps the leaves (same surface groups) and removes only inner nodes.
     let leaves = |t: &ClusterTree| {
         let mut v: Vec<Vec<u32>> = (0..t.nodes.len() as u32)
@@ -489,7 +489,7 @@ fn depth_limits() {
     };
     assert_eq!(leaves(&sah), leaves(&sah2));
     assert!(sah.nodes.len() < sah2.nodes.len());
-    assert_eq!(d(&sah), 21, "4-wide depth");
+    assert_eq!(d(&sah), 17, "8-wide depth");
     let cfg16 = ClusterConfig {
         max_depth: 16,
         sah_width: 2,
@@ -583,7 +583,7 @@ fn graz_office_trees_are_valid() {
             Strategy::Obt => Some((6296, 31, 429, 11.995)),
             Strategy::Okdt => Some((3945, 24, 429, 9.537)),
             Strategy::TfOct => Some((8440, 11, 184, 245.337)),
-            Strategy::Sah => Some((13109, 13, 4, 620.810)),
+            Strategy::Sah => Some((11520, 10, 4, 474.923)),
             _ => None,
         };
         if let Some((clusters, depth, smax, overlap)) = golden {

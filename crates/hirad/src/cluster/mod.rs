@@ -110,8 +110,8 @@ pub struct ClusterConfig {
     pub max_children: usize,
     /// SAH: maximum surfaces per leaf (default 4).
     pub sah_leaf_size: usize,
-    /// SAH: maximum children per node (default 4, a wide BVH as ray tracers use; 2 gives the
-    /// binary tree of the binned build).
+    /// SAH: maximum children per node (default 8, a wide BVH as ray tracers use — Embree's
+    /// BVH8; 2 gives the binary tree of the binned build).
     pub sah_width: usize,
     /// Maximum depth of top-down builders (a safety net for coincident geometry).
     pub max_depth: usize,
@@ -126,7 +126,7 @@ impl Default for ClusterConfig {
             max_surfaces: 12,
             max_children: 8,
             sah_leaf_size: 4,
-            sah_width: 4,
+            sah_width: 8,
             max_depth: 64,
         }
     }

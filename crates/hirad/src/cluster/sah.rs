@@ -2,8 +2,8 @@
 //! `spec/clustering.md` (paper §3.2.2 discusses the trade-off).
 //!
 //! Tree of tight boxes with surfaces only at the leaves. The binned build below makes a
-//! binary tree; it is then collapsed to at most `sah_width` children per node (default 4, the
-//! wide BVH of ray tracers such as Embree's BVH4): starting from the binary children, the
+//! binary tree; it is then collapsed to at most `sah_width` children per node (default 8, the
+//! wide BVH of ray tracers such as Embree's BVH8): starting from the binary children, the
 //! inner child of largest surface area is repeatedly replaced by its own children while the
 //! count stays within the width (ties: lowest position). A node holding more than
 //! `sah_leaf_size` surfaces is always split: the centroids are binned into [`BINS`] equal bins
