@@ -29,9 +29,9 @@
 //! node of each in turn, so that the memory latency of one ray's next node (prefetched at the
 //! end of the step before) overlaps with work on the others; it places the hit children on
 //! its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
-//! the sorted push, which random rays would make mispredict). Counters ([`RayStats`]) are compiled in
-//! only for the `*_stats` entry points (const generic), so the plain queries carry no
-//! counting cost.
+//! the sorted push, whose branches random rays mispredict). Counters ([`RayStats`]) are
+//! compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
+//! no counting cost.
 //!
 //! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
@@ -267,18 +267,6 @@ impl Lane {
             l.prefetch(self.stack[self.len as usize - 1]);
         }
         Step::Continue
-    }
-}
-
-/// Where [`push_sorted`] pushes.
-trait PushStack<T> {
-    fn push(&mut self, x: T);
-}
-
-impl<T: Copy, const N: usize> PushStack<T> for Stack<T, N> {
-    #[inline(always)]
-    fn push(&mut self, x: T) {
-        Stack::push(self, x)
     }
 }
 
@@ -671,8 +659,8 @@ impl<'a> RayCaster<'a> {
 /// Push the hit lanes (`mask`) of one group so that the nearest entry distance is on top
 /// (visited first); ties keep the tree's child order.
 #[inline(always)]
-fn push_sorted<T: Copy>(
-    stack: &mut impl PushStack<T>,
+fn push_sorted<T: Copy, const N: usize>(
+    stack: &mut Stack<T, N>,
     l: &Layout,
     mask: u32,
     tn: &[f32; 4],
