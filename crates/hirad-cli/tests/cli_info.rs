@@ -6,6 +6,17 @@ fn hirad() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hirad"))
 }
 
+/// Run `cmd`, which must succeed, and parse its standard output as JSON.
+fn json_ok(cmd: &mut Command) -> serde_json::Value {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 fn real(name: &str) -> String {
     format!(
         "{}/../../../shared/scenes/{name}/{name}.obj",
@@ -39,22 +50,13 @@ fn bad_line_exits_2_with_file_and_line() {
 
 #[test]
 fn info_json_on_a_real_scene() {
-    let out = hirad()
-        .args([
-            "info",
-            &real("graz_office"),
-            "--json",
-            "--max-reflectance",
-            "0.9",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_ok(hirad().args([
+        "info",
+        &real("graz_office"),
+        "--json",
+        "--max-reflectance",
+        "0.9",
+    ]));
     assert_eq!(v["triangles"], 26_928);
     assert_eq!(v["vertices"], 16_949);
     assert_eq!(v["materials"], 52);
@@ -87,13 +89,8 @@ fn scene_export_then_info() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let a = hirad()
-            .args(["info", "cornell", "--json"])
-            .output()
-            .unwrap();
-        let b = hirad().arg("info").arg(&p).arg("--json").output().unwrap();
-        let a: serde_json::Value = serde_json::from_slice(&a.stdout).unwrap();
-        let b: serde_json::Value = serde_json::from_slice(&b.stdout).unwrap();
+        let a = json_ok(hirad().args(["info", "cornell", "--json"]));
+        let b = json_ok(hirad().arg("info").arg(&p).arg("--json"));
         for k in ["triangles", "materials", "objects", "emitter_triangles"] {
             assert_eq!(a[k], b[k], "{ext} {k}");
         }
@@ -112,17 +109,11 @@ fn builtin_name_wins_over_a_directory_of_that_name() {
     let d = tempfile::tempdir().unwrap();
     std::fs::create_dir(d.path().join("office")).unwrap();
     std::fs::create_dir(d.path().join("results")).unwrap();
-    let out = hirad()
-        .current_dir(d.path())
-        .args(["info", "office", "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let v = json_ok(
+        hirad()
+            .current_dir(d.path())
+            .args(["info", "office", "--json"]),
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["triangles"], 8_354);
     let out = hirad()
         .current_dir(d.path())

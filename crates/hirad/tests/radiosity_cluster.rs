@@ -340,6 +340,20 @@ fn anisotropy_bound_holds_and_flags_flat_clusters() {
     assert_eq!(ctx.anisotropy(el.first_root, el.first_root + n - 1), 0.0);
 }
 
+/// A 0.1 m square 10 m above the middle of the unit square at z = 0, facing down (object 1).
+fn small_square_above(mat: u32) -> radiosity_common::Quad {
+    radiosity_common::Quad {
+        p: [
+            Vec3::new(0.45, 0.45, 10.0),
+            Vec3::new(0.45, 0.55, 10.0),
+            Vec3::new(0.55, 0.55, 10.0),
+            Vec3::new(0.55, 0.45, 10.0),
+        ],
+        mat,
+        group: 1,
+    }
+}
+
 #[test]
 fn flat_cluster_facing_receiver_has_anisotropy_three() {
     use hirad::radiosity::element::Elements;
@@ -351,16 +365,7 @@ fn flat_cluster_facing_receiver_has_anisotropy_three() {
     let scene = radiosity_common::quads_scene(
         &[
             radiosity_common::square_z(0.0, true, 0, 0),
-            radiosity_common::Quad {
-                p: [
-                    Vec3::new(0.45, 0.45, 10.0),
-                    Vec3::new(0.45, 0.55, 10.0),
-                    Vec3::new(0.55, 0.55, 10.0),
-                    Vec3::new(0.55, 0.45, 10.0),
-                ],
-                mat: 0,
-                group: 1,
-            },
+            small_square_above(0),
         ],
         vec![radiosity_common::emitter()],
     );
@@ -381,16 +386,7 @@ fn flat_cluster_emits_its_true_projected_area_when_directional() {
     // 10 m above it facing down, no refinement: the flat cluster sends the small square what the
     // unit square really sends (the point-to-polygon form factor from its centre, 1/(π·100)
     // about), where the isotropic model credits a quarter of it (ΣA/4).
-    let top = radiosity_common::Quad {
-        p: [
-            Vec3::new(0.45, 0.45, 10.0),
-            Vec3::new(0.45, 0.55, 10.0),
-            Vec3::new(0.55, 0.55, 10.0),
-            Vec3::new(0.55, 0.45, 10.0),
-        ],
-        mat: 1,
-        group: 1,
-    };
+    let top = small_square_above(1);
     let black = hirad::scene::Material {
         name: "black".into(),
         rho: Vec3::ZERO,

@@ -20,27 +20,6 @@ pub enum Oracle {
     Error,
 }
 
-impl Oracle {
-    /// Parse `bf` or `error`.
-    pub fn parse(s: &str) -> Result<Oracle> {
-        match s.to_ascii_lowercase().as_str() {
-            "bf" => Ok(Oracle::Bf),
-            "error" => Ok(Oracle::Error),
-            _ => Err(Error::Config(format!(
-                "unknown refinement oracle '{s}' (bf or error)"
-            ))),
-        }
-    }
-
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Oracle::Bf => "bf",
-            Oracle::Error => "error",
-        }
-    }
-}
-
 /// Visibility estimation (`--visibility`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -54,29 +33,6 @@ pub enum VisibilityMode {
     None,
 }
 
-impl VisibilityMode {
-    /// Parse `rays`, `volume` or `none`.
-    pub fn parse(s: &str) -> Result<VisibilityMode> {
-        match s.to_ascii_lowercase().as_str() {
-            "rays" => Ok(VisibilityMode::Rays),
-            "volume" => Ok(VisibilityMode::Volume),
-            "none" => Ok(VisibilityMode::None),
-            _ => Err(Error::Config(format!(
-                "unknown visibility mode '{s}' (rays, volume or none)"
-            ))),
-        }
-    }
-
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            VisibilityMode::Rays => "rays",
-            VisibilityMode::Volume => "volume",
-            VisibilityMode::None => "none",
-        }
-    }
-}
-
 /// How a cluster hands received irradiance to its surfaces (`--cluster-receive`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -86,19 +42,6 @@ pub enum Reception {
     Oriented,
     /// Each surface gets `H / 4` (the cluster intercepts `H · ΣA / 4`).
     Isotropic,
-}
-
-impl Reception {
-    /// Parse `oriented` or `isotropic`.
-    pub fn parse(s: &str) -> Result<Reception> {
-        match s.to_ascii_lowercase().as_str() {
-            "oriented" => Ok(Reception::Oriented),
-            "isotropic" => Ok(Reception::Isotropic),
-            _ => Err(Error::Config(format!(
-                "unknown cluster reception '{s}' (oriented or isotropic)"
-            ))),
-        }
-    }
 }
 
 /// How a cluster emits (`--cluster-emission`).
@@ -117,26 +60,46 @@ pub enum ClusterEmission {
     Directional,
 }
 
-impl ClusterEmission {
-    /// Parse `isotropic` or `directional`.
-    pub fn parse(s: &str) -> Result<ClusterEmission> {
-        match s.to_ascii_lowercase().as_str() {
-            "isotropic" => Ok(ClusterEmission::Isotropic),
-            "directional" => Ok(ClusterEmission::Directional),
-            _ => Err(Error::Config(format!(
-                "unknown cluster emission '{s}' (isotropic or directional)"
-            ))),
-        }
-    }
+/// `parse` (case-insensitive) and `name` of a command-line choice, from one table of names;
+/// the error lists the names ("unknown refinement oracle 'x' (bf or error)").
+macro_rules! choice {
+    ($t:ident, $what:literal, $($v:ident => $s:literal),+ $(,)?) => {
+        impl $t {
+            /// Parse the name given on the command line (any case).
+            pub fn parse(s: &str) -> Result<$t> {
+                match s.to_ascii_lowercase().as_str() {
+                    $($s => Ok($t::$v),)+
+                    _ => Err(Error::Config(format!(
+                        "unknown {} '{s}' ({})",
+                        $what,
+                        alternatives(&[$($s),+])
+                    ))),
+                }
+            }
 
-    /// Name as on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            ClusterEmission::Isotropic => "isotropic",
-            ClusterEmission::Directional => "directional",
+            /// Name as on the command line.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($t::$v => $s,)+
+                }
+            }
         }
+    };
+}
+
+/// `a`, `a or b`, `a, b or c`.
+fn alternatives(names: &[&str]) -> String {
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
     }
 }
+
+choice!(Oracle, "refinement oracle", Bf => "bf", Error => "error");
+choice!(VisibilityMode, "visibility mode", Rays => "rays", Volume => "volume", None => "none");
+choice!(Reception, "cluster reception", Oriented => "oriented", Isotropic => "isotropic");
+choice!(ClusterEmission, "cluster emission", Isotropic => "isotropic", Directional => "directional");
 
 /// Every parameter of a solve. `Default` is the `default` preset.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -335,5 +298,19 @@ mod tests {
         assert_eq!(c.refine, Oracle::Error);
         assert_eq!(c.eps, Some(0.5));
         assert_eq!(c.shadow_rays, 4);
+    }
+
+    #[test]
+    fn choices_parse_their_names_and_list_them_on_error() {
+        assert_eq!(Oracle::parse("BF").unwrap(), Oracle::Bf);
+        assert_eq!(VisibilityMode::parse("volume").unwrap().name(), "volume");
+        assert_eq!(Reception::parse("isotropic").unwrap(), Reception::Isotropic);
+        assert_eq!(ClusterEmission::Directional.name(), "directional");
+        let msg = |e: Error| e.to_string();
+        assert!(msg(VisibilityMode::parse("x").unwrap_err())
+            .contains("unknown visibility mode 'x' (rays, volume or none)"));
+        assert!(msg(Oracle::parse("y").unwrap_err())
+            .contains("unknown refinement oracle 'y' (bf or error)"));
+        assert_eq!(alternatives(&["a"]), "a");
     }
 }

@@ -454,6 +454,19 @@ impl<'a> KernelCtx<'a> {
             }
             _ => None,
         };
+        // The centre kernel of a cluster receiver without a hand-out distribution, computed
+        // once when the source is the same for every sample (all but directional clusters).
+        let centre_k = match (ri, &recv_cdf, sj) {
+            (
+                End::Cluster { .. },
+                _,
+                End::Cluster {
+                    orient: Some(_), ..
+                },
+            ) => None,
+            (End::Cluster { c, .. }, None, _) => Some(Self::point_kernel(c, None, &sj)),
+            _ => None,
+        };
         if recv_cdf.as_ref().is_some_and(|c| c.is_empty()) {
             // No surface of the receiver faces the source: the hand-out delivers nothing.
             return KernelEval {
@@ -472,25 +485,17 @@ impl<'a> KernelCtx<'a> {
                 End::Surface { v, n, .. } => (sample_triangle(&v, sv[s][0], sv[s][1]), n),
                 End::Cluster { node, .. } => self.sample_cluster(node, sv[s][0], sv[s][1]),
             };
-            let src = match sj {
-                End::Cluster {
-                    lo,
-                    hi,
-                    area,
-                    node,
-                    orient: Some(o),
-                    ..
-                } => End::Cluster {
-                    lo,
-                    hi,
-                    c: y,
-                    area,
-                    node,
-                    orient: Some(o),
-                    sample_normal: Some(ny),
-                },
-                other => other,
-            };
+            let mut src = sj;
+            if let End::Cluster {
+                c,
+                sample_normal,
+                orient: Some(_),
+                ..
+            } = &mut src
+            {
+                *c = y;
+                *sample_normal = Some(ny);
+            }
             // Receiver sample point and its unoccluded kernel: on a surface receiver; on a
             // surface of a directional cluster drawn by hand-out weight (irradiance there over
             // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
@@ -521,7 +526,8 @@ impl<'a> KernelCtx<'a> {
                         fmin = fmin.min(fb);
                         fmax = fmax.max(fb);
                     }
-                    (x, Self::point_kernel(c, None, &src))
+                    let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
+                    (x, k)
                 }
             };
             let vis = if fx > 0.0 || bounds {

@@ -246,10 +246,7 @@ impl<'a> Solver<'a> {
             shadow_rays: cfg.shadow_rays,
             two_sided: cfg.two_sided,
             cluster_emission: cfg.cluster_emission.name().into(),
-            cluster_receive: match cfg.cluster_receive {
-                Reception::Oriented => "oriented".into(),
-                Reception::Isotropic => "isotropic".into(),
-            },
+            cluster_receive: cfg.cluster_receive.name().into(),
             threads: rayon::current_num_threads(),
             ..Default::default()
         };
