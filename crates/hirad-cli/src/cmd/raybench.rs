@@ -6,7 +6,7 @@
 use crate::Global;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::Progress;
-use hirad::ray::{sample, RayCaster, RayStats};
+use hirad::ray::{sample, Boxes, RayCaster, RayStats};
 use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::time::Instant;
@@ -33,6 +33,12 @@ pub struct Args {
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
     #[arg(long)]
     pub brute: bool,
+    /// Boxes the traversal tests: `tight` (every node's box shrunk to what lies below it, and
+    /// the triangles attached to an inner node behind a box of their own) or `cluster` (the
+    /// strategy's own boxes, e.g. the k-d cells of kdt/obt, and a node's triangles tested
+    /// whenever it is visited). Same nodes, triangles and results either way.
+    #[arg(long, default_value = "tight", value_parser = ["tight", "cluster"])]
+    pub boxes: String,
     /// Also write the triangles and segments to FILE, for casting the same segments with
     /// another program (little-endian: u32 triangle count, 9 f32 per triangle in scene order,
     /// u32 segment count, 8 f32 per segment: origin, direction, tmin, tmax)
@@ -77,6 +83,7 @@ struct Report {
     triangles: usize,
     pairs: usize,
     seed: u64,
+    boxes: Boxes,
     threads: usize,
     hirad_version: &'static str,
     sample_ms: f64,
@@ -96,6 +103,8 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         return Err(hirad::Error::Config("--pairs must be at least 1".into()).into());
     }
     let repeat = args.repeat.max(1);
+    let boxes = Boxes::parse(&args.boxes)
+        .ok_or_else(|| hirad::Error::Config(format!("unknown --boxes {}", args.boxes)))?;
     let scene = super::load_scene(&args.scene, &SceneOptions::default())?;
     let t0 = Instant::now();
     let segs = sample::sample_segments(&scene, args.pairs, args.seed);
@@ -114,7 +123,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         let tree = ClusterTree::build(&scene, st, &cfg);
         let build_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t0 = Instant::now();
-        let rc = RayCaster::new(&scene, &tree);
+        let rc = RayCaster::with_boxes(&scene, &tree, boxes);
         let layout_ms = t0.elapsed().as_secs_f64() * 1e3;
         let mut times = Vec::with_capacity(repeat);
         let mut occluded = 0;
@@ -221,6 +230,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         triangles: scene.num_triangles(),
         pairs: segs.len(),
         seed: args.seed,
+        boxes,
         threads: rayon::current_num_threads(),
         hirad_version: hirad::VERSION,
         sample_ms,
@@ -242,8 +252,14 @@ fn opt(x: Option<f64>, prec: usize) -> String {
 
 fn print_table(r: &Report) {
     println!(
-        "scene {} ({} triangles), {} pairs, seed {}, {} thread(s), sampling {:.1} ms",
-        r.scene, r.triangles, r.pairs, r.seed, r.threads, r.sample_ms
+        "scene {} ({} triangles), {} pairs, seed {}, {} boxes, {} thread(s), sampling {:.1} ms",
+        r.scene,
+        r.triangles,
+        r.pairs,
+        r.seed,
+        r.boxes.name(),
+        r.threads,
+        r.sample_ms
     );
     if let Some(b) = r.brute_occluded {
         println!("brute-force occluded: {b}");

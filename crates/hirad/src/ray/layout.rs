@@ -27,6 +27,7 @@ use super::watertight::{
 use crate::cluster::ClusterTree;
 use crate::geom::Aabb;
 use crate::scene::Scene;
+use serde::{Deserialize, Serialize};
 
 /// Reference flag of a leaf encoded in place.
 pub(super) const LEAF: u32 = 1 << 31;
@@ -60,14 +61,42 @@ pub(super) struct Group {
     pub b: [[f32; 4]; 6],
     /// Child references: a group index, a leaf ([`LEAF`] bit) or [`NONE`].
     pub child: [u32; 4],
-    /// The node's own triangle run: first packet and number of triangles (first group of a
-    /// node only).
+    /// The node's own triangle run: first packet and number of triangles. Held by the first
+    /// group of a node and tested whenever the node is visited, unless the run has a box of
+    /// its own in a free lane ([`Group::run`]): then the group holding that lane holds the
+    /// run, tested only when the ray hits that lane.
     pub tri_start: u32,
     pub num_tris: u32,
     /// Number of consecutive groups of the node (first group only).
     pub num_groups: u32,
-    /// Number of non-empty lanes in this group.
-    pub lanes: u32,
+    /// Number of non-empty lanes in this group (the run's lane included).
+    pub lanes: u16,
+    /// Bit of the lane holding the box of the node's own triangle run (0: none in this group).
+    pub run: u16,
+}
+
+impl Group {
+    /// Put `b` and reference `r` in `lane`.
+    fn set_lane(&mut self, lane: usize, b: &Aabb, r: u32) {
+        for a in 0..3 {
+            self.b[a][lane] = b.min[a];
+            self.b[a + 3][lane] = b.max[a];
+        }
+        self.child[lane] = r;
+        self.lanes += 1;
+    }
+
+    /// The hit lanes of `mask` that hold children (the run's lane removed).
+    #[inline(always)]
+    pub(super) fn children(&self, mask: u32) -> u32 {
+        mask & !(self.run as u32)
+    }
+
+    /// Whether `mask` hits the lane of the node's own run.
+    #[inline(always)]
+    pub(super) fn hits_run(&self, mask: u32) -> bool {
+        mask & self.run as u32 != 0
+    }
 }
 
 impl Default for Group {
@@ -82,7 +111,43 @@ impl Default for Group {
             num_tris: 0,
             num_groups: 0,
             lanes: 0,
+            run: 0,
         }
+    }
+}
+
+/// Which boxes the traversal tests (`raybench --boxes`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Boxes {
+    /// Every node's box shrunk to what lies below it (the union of its own triangles' boxes
+    /// and its children's boxes), and the triangles attached to an inner node bounded by a
+    /// box of their own in a free lane of the node's last group, so that they are tested
+    /// only when the ray hits that box. Same nodes, children and triangles as the tree: only
+    /// the boxes are tighter. Differs from [`Boxes::Cluster`] only where the strategy's boxes
+    /// are loose (`kdt` and `obt` cells) and at inner nodes with triangles of their own.
+    #[default]
+    Tight,
+    /// The strategy's own boxes (grown to contain their contents exactly), and the triangles
+    /// of a node tested whenever the node is visited: the traversal the paper describes.
+    Cluster,
+}
+
+impl Boxes {
+    /// Every choice, in the order of the help text.
+    pub const ALL: [Boxes; 2] = [Boxes::Tight, Boxes::Cluster];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Boxes::Tight => "tight",
+            Boxes::Cluster => "cluster",
+        }
+    }
+
+    /// Parse a command-line name.
+    pub fn parse(s: &str) -> Option<Boxes> {
+        Self::ALL.into_iter().find(|b| b.name() == s)
     }
 }
 
@@ -164,7 +229,7 @@ pub(super) fn lane_mask<const W: usize>(n: usize, k: usize) -> u32 {
 }
 
 impl Layout {
-    pub(super) fn new(scene: &Scene, tree: &ClusterTree) -> Layout {
+    pub(super) fn new(scene: &Scene, tree: &ClusterTree, boxes: Boxes) -> Layout {
         let n = tree.nodes.len();
         if n == 0 {
             return Layout::default();
@@ -222,13 +287,24 @@ impl Layout {
                 ng += c.div_ceil(4).max(1);
             }
         }
-        // Boxes grown to their contents, children first.
+        // Boxes of the nodes' own runs and of the nodes (grown to, or tight around, their
+        // contents), children first.
+        let mut run_bound = vec![Aabb::EMPTY; n];
         let mut bound = vec![Aabb::EMPTY; n];
         for &id in order.iter().rev() {
-            let mut b = tree.nodes[id as usize].bbox;
+            let mut rb = Aabb::EMPTY;
             for s in surfs(id) {
-                b.grow_box(&scene.tri_bbox(s as usize));
+                rb.grow_box(&scene.tri_bbox(s as usize));
             }
+            run_bound[id as usize] = rb;
+            let mut b = match boxes {
+                Boxes::Tight => rb,
+                Boxes::Cluster => {
+                    let mut b = tree.nodes[id as usize].bbox;
+                    b.grow_box(&rb);
+                    b
+                }
+            };
             for c in kids(id) {
                 let cb = bound[c as usize];
                 b.grow_box(&cb);
@@ -257,19 +333,22 @@ impl Layout {
                 let num_groups = k.len().div_ceil(4).max(1);
                 for (i, &c) in k.iter().enumerate() {
                     let g = &mut groups[g0 + i / 4];
-                    let lane = i % 4;
-                    let b = &bound[c as usize];
-                    for a in 0..3 {
-                        g.b[a][lane] = b.min[a];
-                        g.b[a + 3][lane] = b.max[a];
-                    }
-                    g.child[lane] = refs[c as usize];
-                    g.lanes += 1;
+                    g.set_lane(i % 4, &bound[c as usize], refs[c as usize]);
                 }
-                let g = &mut groups[g0];
+                let nt = surfs(id).count();
+                // The run gets a lane of its own when the last group has one free (a node
+                // without children has no box to spare: its run is its box).
+                let run_lane = boxes == Boxes::Tight && nt > 0 && k.len() % 4 != 0;
+                let at = if run_lane { g0 + num_groups - 1 } else { g0 };
+                let g = &mut groups[at];
                 g.tri_start = tri_pos[id as usize] as u32;
-                g.num_tris = surfs(id).count() as u32;
-                g.num_groups = num_groups as u32;
+                g.num_tris = nt as u32;
+                if run_lane {
+                    let lane = k.len() % 4;
+                    g.set_lane(lane, &run_bound[id as usize], NONE);
+                    g.run = 1 << lane;
+                }
+                groups[g0].num_groups = num_groups as u32;
             }
             let long = surfs(id).count() >= WIDE_MIN;
             for (i, s) in surfs(id).enumerate() {
@@ -301,8 +380,9 @@ impl Layout {
             + self.wide.len() * std::mem::size_of::<Wide>()
     }
 
-    /// The triangle run `(first packet, count)` of a reference and, for a node with groups, its
-    /// first group and number of groups.
+    /// The triangle run `(first packet, count)` to test on visiting a reference (none when the
+    /// run has a lane of its own) and, for a node with groups, its first group and number of
+    /// groups.
     #[inline(always)]
     pub(super) fn node(&self, r: u32) -> (usize, usize, usize, usize) {
         if r & LEAF != 0 {
@@ -310,12 +390,8 @@ impl Layout {
             (s, c, 0, 0)
         } else {
             let g = &self.groups[r as usize];
-            (
-                g.tri_start as usize,
-                g.num_tris as usize,
-                r as usize,
-                g.num_groups as usize,
-            )
+            let nt = if g.run != 0 { 0 } else { g.num_tris as usize };
+            (g.tri_start as usize, nt, r as usize, g.num_groups as usize)
         }
     }
 
@@ -613,12 +689,14 @@ impl Ray4 {
     }
 
     /// [`Ray4::test`] for occlusion: the hit mask and, for every lane, its position among the
-    /// hit lanes in push order (farthest entry first, ties: higher lane first), so that the
-    /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
-    /// without data-dependent branches (random rays make them unpredictable).
+    /// hit children in push order (farthest entry first, ties: higher lane first), so that the
+    /// nearest ends on top. Lanes that are not hit and the run's lane get positions after the
+    /// hit children. Computed without data-dependent branches (random rays make them
+    /// unpredictable).
     #[inline(always)]
     pub(super) fn test_ranked(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [u32; 4]) {
-        let (mask, tn) = self.test(g, tmin, tmax);
+        let (all, tn) = self.test(g, tmin, tmax);
+        let mask = g.children(all);
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::*;
@@ -657,7 +735,7 @@ impl Ray4 {
                     out.as_mut_ptr() as *mut __m128i,
                     _mm_sub_epi32(_mm_setzero_si128(), n),
                 );
-                (mask, out)
+                (all, out)
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -674,7 +752,7 @@ impl Ray4 {
                     .filter(|&j| j != i && (t[j] > t[i] || (t[j] == t[i] && j > i)))
                     .count() as u32
             });
-            (mask, out)
+            (all, out)
         }
     }
 }

@@ -45,6 +45,7 @@ pub mod watertight;
 use crate::cluster::ClusterTree;
 use crate::scene::Scene;
 use glam::Vec3;
+pub use layout::Boxes;
 use layout::{Layout, Ray4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -249,7 +250,14 @@ impl Lane {
             return Step::Hit;
         }
         for g in &l.groups[g0..g0 + ng] {
-            let (mask, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+            let (all, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+            if g.hits_run(all) {
+                let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+                if l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
+                    return Step::Hit;
+                }
+            }
+            let mask = g.children(all);
             let len = self.len as usize;
             if len + 4 > LANE_STACK {
                 if mask == 0 {
@@ -290,10 +298,16 @@ const STACK: usize = 128;
 impl<'a> RayCaster<'a> {
     /// Prepare the traversal data of `tree`.
     pub fn new(scene: &'a Scene, tree: &'a ClusterTree) -> Self {
+        Self::with_boxes(scene, tree, Boxes::default())
+    }
+
+    /// Prepare the traversal data of `tree`, testing the boxes `boxes` (same results either
+    /// way; [`Boxes::Cluster`] measures the strategy's own boxes).
+    pub fn with_boxes(scene: &'a Scene, tree: &'a ClusterTree, boxes: Boxes) -> Self {
         Self {
             scene,
             tree,
-            layout: Layout::new(scene, tree),
+            layout: Layout::new(scene, tree, boxes),
         }
     }
 
@@ -570,7 +584,13 @@ impl<'a> RayCaster<'a> {
                     stats.boxes += g.lanes as u64;
                 }
                 let (mask, tn) = r4.test(g, tmin, tmax);
-                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+                if g.hits_run(mask) {
+                    let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+                    if l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
+                        return true;
+                    }
+                }
+                push_sorted(&mut stack, l, g.children(mask), &tn, &g.child, |c, _| c);
             }
         }
         false
@@ -617,7 +637,9 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (mask, tn) = r4.test(g, tmin, best_t);
+                let (all, tn) = r4.test(g, tmin, best_t);
+                self.closest_run::<STATS>(&r, g, all, tmin, &mut best_t, &mut best, stats);
+                let mask = g.children(all);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
                     node: c,
                     t,
@@ -630,7 +652,9 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (mut mask, tn) = r4.test(g, tmin, best_t);
+                let (all, tn) = r4.test(g, tmin, best_t);
+                self.closest_run::<STATS>(&r, g, all, tmin, &mut best_t, &mut best, stats);
+                let mut mask = g.children(all);
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -653,6 +677,28 @@ impl<'a> RayCaster<'a> {
             u,
             v,
         })
+    }
+
+    /// Closest hit among the node's own triangles when `mask` hits their lane in `g`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn closest_run<const STATS: bool>(
+        &self,
+        r: &RayPre,
+        g: &layout::Group,
+        mask: u32,
+        tmin: f32,
+        best_t: &mut f32,
+        best: &mut Option<(u32, f32, f32)>,
+        stats: &mut RayStats,
+    ) {
+        if g.hits_run(mask) {
+            let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+            if STATS {
+                stats.tris += nt as u64;
+            }
+            self.layout.closest_hit(r, ts, nt, tmin, best_t, best);
+        }
     }
 }
 

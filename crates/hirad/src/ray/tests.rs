@@ -93,29 +93,62 @@ fn inner_surface_tree(scene: &Scene) -> ClusterTree {
 fn layout_is_depth_first_with_inner_surfaces() {
     let s = two_tri_scene();
     let t = inner_surface_tree(&s);
-    let rc = RayCaster::new(&s, &t);
-    let l = &rc.layout;
-    // The root has a child: one group holding its own triangle (1) and the leaf's box; the
-    // leaf is encoded in place and holds triangle 0 in the second packet.
-    assert_eq!(l.root, Some(0));
-    assert_eq!(l.groups.len(), 1);
-    let g = &l.groups[0];
-    assert_eq!(
-        (g.tri_start, g.num_tris, g.num_groups, g.lanes),
-        (0, 1, 1, 1)
-    );
-    assert_eq!(l.packets.len(), 2);
-    assert_eq!(l.packets[0].id, [1, u32::MAX, u32::MAX, u32::MAX]);
-    assert_eq!(l.packets[1].id, [0, u32::MAX, u32::MAX, u32::MAX]);
-    let leaf = g.child[0];
-    assert_ne!(leaf & layout::LEAF, 0);
-    assert_eq!(layout::leaf_run(leaf), (1, 1));
-    assert_eq!(g.child[1..], [layout::NONE; 3]);
-    // The leaf's box is triangle 0's box; empty lanes are inverted.
-    assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
-    assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
-    assert!(g.b[0][1] > g.b[3][1]);
-    assert_eq!(l.root_box, [0.0, 0.0, 0.0, 2.0, 2.0, 1.0]);
+    for boxes in Boxes::ALL {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        let l = &rc.layout;
+        // The root has a child: one group holding its own triangle (1) and the leaf's box; the
+        // leaf is encoded in place and holds triangle 0 in the second packet. With tight boxes
+        // the root's triangle has a box of its own in the second lane.
+        assert_eq!(l.root, Some(0));
+        assert_eq!(l.groups.len(), 1);
+        let g = &l.groups[0];
+        let (lanes, run) = match boxes {
+            Boxes::Tight => (2, 0b10),
+            Boxes::Cluster => (1, 0),
+        };
+        assert_eq!(
+            (g.tri_start, g.num_tris, g.num_groups, g.lanes, g.run),
+            (0, 1, 1, lanes, run)
+        );
+        assert_eq!(l.packets.len(), 2);
+        assert_eq!(l.packets[0].id, [1, u32::MAX, u32::MAX, u32::MAX]);
+        assert_eq!(l.packets[1].id, [0, u32::MAX, u32::MAX, u32::MAX]);
+        let leaf = g.child[0];
+        assert_ne!(leaf & layout::LEAF, 0);
+        assert_eq!(layout::leaf_run(leaf), (1, 1));
+        assert_eq!(g.child[1..], [layout::NONE; 3]);
+        // The leaf's box is triangle 0's box; empty lanes are inverted.
+        assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
+        assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
+        let lane1 = [1, 4].map(|a| g.b[a][1]);
+        if boxes == Boxes::Tight {
+            // Triangle 1's box: (0, 0, 1)–(2, 2, 1).
+            assert_eq!(lane1, [0.0, 2.0]);
+            assert_eq!([g.b[2][1], g.b[5][1]], [1.0, 1.0]);
+        } else {
+            assert!(lane1[0] > lane1[1]);
+        }
+        assert!(g.b[0][2] > g.b[3][2]);
+        assert_eq!(l.root_box, [0.0, 0.0, 0.0, 2.0, 2.0, 1.0]);
+    }
+}
+
+#[test]
+fn tight_boxes_shrink_a_loose_cluster_box() {
+    // A root box far larger than its contents (a k-d cell): the tight root box is the
+    // triangles' box, so a ray through the empty part of the cell visits nothing (with the
+    // cluster's box it visits the root and tests the root's own triangle).
+    let s = two_tri_scene();
+    let mut t = inner_surface_tree(&s);
+    t.nodes[0].bbox.max = Vec3::splat(10.0);
+    let (o, d) = (Vec3::new(5.0, 5.0, -1.0), Vec3::Z);
+    for (boxes, root_max, visits) in [(Boxes::Cluster, 10.0, 1), (Boxes::Tight, 2.0, 0)] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        assert_eq!(rc.layout.root_box[3], root_max);
+        let mut st = RayStats::default();
+        assert!(!rc.occluded_stats(o, d, 0.0, 20.0, &mut st));
+        assert_eq!((st.nodes, st.tris), (visits, visits), "{boxes:?}");
+    }
 }
 
 #[test]
@@ -177,23 +210,32 @@ fn closest_is_nearest_through_inner_node() {
     // Segment ending before triangle 1.
     assert!(!rc.occluded(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 0.9));
     assert!(rc.occluded(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 1.0));
-    let mut st = RayStats::default();
-    assert!(rc
-        .closest_stats(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 10.0, &mut st)
-        .is_some());
-    assert_eq!(st.rays, 1);
-    // The hit at the root (t = 1) culls the child box (entry t = 2).
-    assert_eq!(st.nodes, 1);
-    assert_eq!(st.tris, 1);
-    assert_eq!(st.boxes, 2);
-    let mut st = RayStats::default();
-    assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0, &mut st));
-    // Any hit stops the query: the root's own triangle (t = 2) is tested first and hit.
-    assert_eq!((st.nodes, st.tris, st.boxes), (1, 1, 1));
-    let mut st = RayStats::default();
-    assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 1.5, &mut st));
-    // With tmax = 1.5 the root triangle is missed and the leaf's is hit.
-    assert_eq!((st.nodes, st.tris, st.boxes), (2, 2, 2));
+    // Counters, for both kinds of boxes: (closest from above, any hit from below, any hit
+    // from below with tmax = 1.5) as (nodes, triangles, boxes).
+    for (boxes, want) in [
+        // The root's own triangle is tested on visiting the root.
+        (Boxes::Cluster, [(1, 1, 2), (1, 1, 1), (2, 2, 2)]),
+        // The root's own triangle has a lane: tested only when that lane is hit, and a lane
+        // more is tested.
+        (Boxes::Tight, [(1, 1, 3), (1, 1, 3), (2, 1, 3)]),
+    ] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        let mut st = RayStats::default();
+        assert!(rc
+            .closest_stats(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 10.0, &mut st)
+            .is_some());
+        assert_eq!(st.rays, 1);
+        // The hit at the root (t = 1) culls the child box (entry t = 2).
+        assert_eq!((st.nodes, st.tris, st.boxes), want[0], "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0, &mut st));
+        // Any hit stops the query: the root's own triangle (t = 2) is tested first and hit.
+        assert_eq!((st.nodes, st.tris, st.boxes), want[1], "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 1.5, &mut st));
+        // With tmax = 1.5 the root triangle is missed and the leaf's is hit.
+        assert_eq!((st.nodes, st.tris, st.boxes), want[2], "{boxes:?}");
+    }
 }
 
 #[test]
