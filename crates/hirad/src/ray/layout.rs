@@ -1,11 +1,12 @@
 //! Traversal layout of a cluster tree: the tree's own nodes and children, stored for fast
-//! box tests (the topology is kept exactly: no node is added, merged or skipped).
+//! box tests (the topology is kept exactly: no node is added, merged or skipped, and every
+//! triangle is tested at the node it is attached to).
 //!
 //! - A node with children (or with more triangles than a leaf reference can hold) owns
 //!   `⌈children/4⌉` consecutive [`Group`]s of 128 bytes: the boxes of up to four children in
 //!   structure-of-arrays form (one 4-wide SIMD slab test checks all four), the children's
-//!   references, and, in the first group, the node's own triangle run (surfaces attached at
-//!   inner nodes) and its number of groups.
+//!   references, the node's own triangle run (surfaces attached at inner nodes) and, in the
+//!   first group, its number of groups.
 //! - A leaf is not stored as a node at all: its reference in the parent's group encodes its
 //!   triangle run directly (bit 31 set, 5 bits of count, 26 bits of first packet), so
 //!   reaching a leaf reads only its triangles.
@@ -17,9 +18,16 @@
 //!   from its length alone.
 //! - Groups and triangle runs are in depth-first pre-order, so a subtree is contiguous.
 //!
-//! Boxes are the strategy's boxes grown to contain their contents exactly (strategies may
-//! leave an f32 slack that `validate` tolerates; a ray grazing such a triangle must still
-//! reach it, so that the result equals brute force for any tree).
+//! Boxes ([`Boxes`]): by default every box is tight around what lies below its node (the
+//! union of its own triangles' boxes and its children's boxes), whatever box the strategy
+//! gave it — `kdt`/`obt` nodes keep their k-d cells, mostly empty space — and the triangles
+//! of an inner node whose last group has a free lane get a box of their own in that lane: the
+//! node's one SIMD test then decides them with its children, and they are tested only when
+//! the ray hits their box (straddling surfaces of a k-d node, a strip of floor). With
+//! [`Boxes::Cluster`] the boxes are the strategy's boxes grown to contain their contents
+//! exactly (strategies may leave an f32 slack that `validate` tolerates; a ray grazing such
+//! a triangle must still reach it, so that the result equals brute force for any tree), and
+//! a node's triangles are tested whenever it is visited, as the paper's traversal does.
 
 use super::watertight::{
     candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4, BOX_SLACK,
@@ -36,6 +44,9 @@ const LEAF_COUNT_SHIFT: u32 = 26;
 const LEAF_MAX_TRIS: usize = (1 << (31 - LEAF_COUNT_SHIFT)) - 1;
 /// Largest first packet of an in-place leaf.
 const LEAF_MAX_START: usize = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Reference flag of a node's own triangle run behind a box of its own (bit 31 clear): the
+/// low bits are the index of the group holding the run.
+pub(super) const RUN: u32 = 1 << 30;
 /// Reference of an empty lane.
 pub(super) const NONE: u32 = u32::MAX;
 
@@ -59,12 +70,14 @@ pub(super) struct Group {
     /// `[min x, min y, min z, max x, max y, max z]`, one lane per child; empty lanes hold an
     /// inverted infinite box (never hit).
     pub b: [[f32; 4]; 6],
-    /// Child references: a group index, a leaf ([`LEAF`] bit) or [`NONE`].
+    /// Child references: a group index, a leaf ([`LEAF`] bit), the node's own run ([`RUN`]
+    /// bit) or [`NONE`].
     pub child: [u32; 4],
     /// The node's own triangle run: first packet and number of triangles. Held by the first
     /// group of a node and tested whenever the node is visited, unless the run has a box of
     /// its own in a free lane ([`Group::run`]): then the group holding that lane holds the
-    /// run, tested only when the ray hits that lane.
+    /// run, and the lane's reference ([`RUN`] | that group) is pushed and visited like a
+    /// leaf's when the ray hits it.
     pub tri_start: u32,
     pub num_tris: u32,
     /// Number of consecutive groups of the node (first group only).
@@ -84,18 +97,6 @@ impl Group {
         }
         self.child[lane] = r;
         self.lanes += 1;
-    }
-
-    /// The hit lanes of `mask` that hold children (the run's lane removed).
-    #[inline(always)]
-    pub(super) fn children(&self, mask: u32) -> u32 {
-        mask & !(self.run as u32)
-    }
-
-    /// Whether `mask` hits the lane of the node's own run.
-    #[inline(always)]
-    pub(super) fn hits_run(&self, mask: u32) -> bool {
-        mask & self.run as u32 != 0
     }
 }
 
@@ -338,14 +339,15 @@ impl Layout {
                 let nt = surfs(id).count();
                 // The run gets a lane of its own when the last group has one free (a node
                 // without children has no box to spare: its run is its box).
-                let run_lane = boxes == Boxes::Tight && nt > 0 && k.len() % 4 != 0;
+                let run_lane =
+                    boxes == Boxes::Tight && nt > 0 && k.len() % 4 != 0 && ng < RUN as usize;
                 let at = if run_lane { g0 + num_groups - 1 } else { g0 };
                 let g = &mut groups[at];
                 g.tri_start = tri_pos[id as usize] as u32;
                 g.num_tris = nt as u32;
                 if run_lane {
                     let lane = k.len() % 4;
-                    g.set_lane(lane, &run_bound[id as usize], NONE);
+                    g.set_lane(lane, &run_bound[id as usize], RUN | at as u32);
                     g.run = 1 << lane;
                 }
                 groups[g0].num_groups = num_groups as u32;
@@ -380,14 +382,17 @@ impl Layout {
             + self.wide.len() * std::mem::size_of::<Wide>()
     }
 
-    /// The triangle run `(first packet, count)` to test on visiting a reference (none when the
-    /// run has a lane of its own) and, for a node with groups, its first group and number of
-    /// groups.
+    /// The triangle run `(first packet, count)` to test on visiting a reference (a leaf's, a
+    /// node's own run behind its box, or a node's own run without a box) and, for a node with
+    /// groups, its first group and number of groups.
     #[inline(always)]
     pub(super) fn node(&self, r: u32) -> (usize, usize, usize, usize) {
         if r & LEAF != 0 {
             let (s, c) = leaf_run(r);
             (s, c, 0, 0)
+        } else if r & RUN != 0 {
+            let g = &self.groups[(r & !RUN) as usize];
+            (g.tri_start as usize, g.num_tris as usize, 0, 0)
         } else {
             let g = &self.groups[r as usize];
             let nt = if g.run != 0 { 0 } else { g.num_tris as usize };
@@ -472,6 +477,13 @@ impl Layout {
         false
     }
 
+    /// Whether visiting reference `r` visits a node of the tree (a node's own run behind its
+    /// box does not: its node was visited when the box was tested).
+    #[inline(always)]
+    pub(super) fn is_node(r: u32) -> bool {
+        r & (LEAF | RUN) != RUN
+    }
+
     /// Hint the cache to load what visiting `r` reads first.
     #[inline(always)]
     pub(super) fn prefetch(&self, r: u32) {
@@ -481,10 +493,10 @@ impl Layout {
             // SAFETY: a prefetch is only a hint and never faults, whatever the address.
             #[allow(unused_unsafe)]
             unsafe {
-                if r & LEAF != 0 {
+                if r & (LEAF | RUN) != 0 {
                     // A packet spans three cache lines (160 bytes, at offset 0 or 32 of a line);
                     // of a wide packet, the first three.
-                    let (s, n) = leaf_run(r);
+                    let (s, n, _, _) = self.node(r);
                     let p = if n >= WIDE_MIN {
                         self.wide.as_ptr().wrapping_add(s) as *const i8
                     } else {
@@ -689,14 +701,12 @@ impl Ray4 {
     }
 
     /// [`Ray4::test`] for occlusion: the hit mask and, for every lane, its position among the
-    /// hit children in push order (farthest entry first, ties: higher lane first), so that the
-    /// nearest ends on top. Lanes that are not hit and the run's lane get positions after the
-    /// hit children. Computed without data-dependent branches (random rays make them
-    /// unpredictable).
+    /// hit lanes in push order (farthest entry first, ties: higher lane first), so that the
+    /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
+    /// without data-dependent branches (random rays make them unpredictable).
     #[inline(always)]
     pub(super) fn test_ranked(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [u32; 4]) {
-        let (all, tn) = self.test(g, tmin, tmax);
-        let mask = g.children(all);
+        let (mask, tn) = self.test(g, tmin, tmax);
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::*;
@@ -735,7 +745,7 @@ impl Ray4 {
                     out.as_mut_ptr() as *mut __m128i,
                     _mm_sub_epi32(_mm_setzero_si128(), n),
                 );
-                (all, out)
+                (mask, out)
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -752,7 +762,7 @@ impl Ray4 {
                     .filter(|&j| j != i && (t[j] > t[i] || (t[j] == t[i] && j > i)))
                     .count() as u32
             });
-            (all, out)
+            (mask, out)
         }
     }
 }

@@ -14,10 +14,12 @@
 //! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
 //! with its f64 hit distance decides every candidate); the box test is conservative
 //! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
-//! are the strategy's boxes grown to contain their contents exactly; a box flat along an axis
-//! in whose plane the ray lies is skipped, as its contents are coplanar with the ray and the
-//! watertight test never reports them ([`layout`]'s `Ray4::flat_in_plane`: a segment along a
-//! floor no longer visits every floor cell it passes). So the result equals a
+//! contain their contents exactly: tight around them by default, a node's own triangles
+//! behind a box of their own, or the strategy's boxes grown to their contents
+//! ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
+//! an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
+//! and the watertight test never reports them ([`layout`]'s `Ray4::flat_in_plane`: a segment
+//! along a floor no longer visits every floor cell it passes). So the result equals a
 //! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
 //! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
 //! strategies.
@@ -250,14 +252,7 @@ impl Lane {
             return Step::Hit;
         }
         for g in &l.groups[g0..g0 + ng] {
-            let (all, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
-            if g.hits_run(all) {
-                let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
-                if l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
-                    return Step::Hit;
-                }
-            }
-            let mask = g.children(all);
+            let (mask, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
             let len = self.len as usize;
             if len + 4 > LANE_STACK {
                 if mask == 0 {
@@ -573,7 +568,7 @@ impl<'a> RayCaster<'a> {
         stack.push(root);
         while let Some(n) = stack.pop() {
             if STATS {
-                stats.nodes += 1;
+                stats.nodes += Layout::is_node(n) as u64;
             }
             let (ts, nt, g0, ng) = l.node(n);
             if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
@@ -584,13 +579,7 @@ impl<'a> RayCaster<'a> {
                     stats.boxes += g.lanes as u64;
                 }
                 let (mask, tn) = r4.test(g, tmin, tmax);
-                if g.hits_run(mask) {
-                    let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
-                    if l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
-                        return true;
-                    }
-                }
-                push_sorted(&mut stack, l, g.children(mask), &tn, &g.child, |c, _| c);
+                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
         }
         false
@@ -626,7 +615,7 @@ impl<'a> RayCaster<'a> {
             }
             let (ts, nt, g0, ng) = l.node(e.node);
             if STATS {
-                stats.nodes += 1;
+                stats.nodes += Layout::is_node(e.node) as u64;
                 stats.tris += nt as u64;
             }
             if nt > 0 {
@@ -637,9 +626,7 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (all, tn) = r4.test(g, tmin, best_t);
-                self.closest_run::<STATS>(&r, g, all, tmin, &mut best_t, &mut best, stats);
-                let mask = g.children(all);
+                let (mask, tn) = r4.test(g, tmin, best_t);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
                     node: c,
                     t,
@@ -652,9 +639,7 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (all, tn) = r4.test(g, tmin, best_t);
-                self.closest_run::<STATS>(&r, g, all, tmin, &mut best_t, &mut best, stats);
-                let mut mask = g.children(all);
+                let (mut mask, tn) = r4.test(g, tmin, best_t);
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -677,28 +662,6 @@ impl<'a> RayCaster<'a> {
             u,
             v,
         })
-    }
-
-    /// Closest hit among the node's own triangles when `mask` hits their lane in `g`.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn closest_run<const STATS: bool>(
-        &self,
-        r: &RayPre,
-        g: &layout::Group,
-        mask: u32,
-        tmin: f32,
-        best_t: &mut f32,
-        best: &mut Option<(u32, f32, f32)>,
-        stats: &mut RayStats,
-    ) {
-        if g.hits_run(mask) {
-            let (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
-            if STATS {
-                stats.tris += nt as u64;
-            }
-            self.layout.closest_hit(r, ts, nt, tmin, best_t, best);
-        }
     }
 }
 

@@ -116,7 +116,20 @@ fn layout_is_depth_first_with_inner_surfaces() {
         let leaf = g.child[0];
         assert_ne!(leaf & layout::LEAF, 0);
         assert_eq!(layout::leaf_run(leaf), (1, 1));
-        assert_eq!(g.child[1..], [layout::NONE; 3]);
+        let lane1 = match boxes {
+            // The run's reference: the group holding it.
+            Boxes::Tight => layout::RUN,
+            Boxes::Cluster => layout::NONE,
+        };
+        assert_eq!(g.child[1..], [lane1, layout::NONE, layout::NONE]);
+        if boxes == Boxes::Tight {
+            // Visiting the run's reference tests the root's triangle; visiting the root does
+            // not.
+            assert_eq!(l.node(layout::RUN), (0, 1, 0, 0));
+            assert_eq!(l.node(0), (0, 0, 0, 1));
+        } else {
+            assert_eq!(l.node(0), (0, 1, 0, 1));
+        }
         // The leaf's box is triangle 0's box; empty lanes are inverted.
         assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
         assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
@@ -215,9 +228,9 @@ fn closest_is_nearest_through_inner_node() {
     for (boxes, want) in [
         // The root's own triangle is tested on visiting the root.
         (Boxes::Cluster, [(1, 1, 2), (1, 1, 1), (2, 2, 2)]),
-        // The root's own triangle has a lane: tested only when that lane is hit, and a lane
-        // more is tested.
-        (Boxes::Tight, [(1, 1, 3), (1, 1, 3), (2, 1, 3)]),
+        // The root's own triangle has a lane (one box test more), visited like a leaf in order
+        // of distance: from below, the nearer leaf first, whose triangle is hit.
+        (Boxes::Tight, [(1, 1, 3), (2, 1, 3), (2, 1, 3)]),
     ] {
         let rc = RayCaster::with_boxes(&s, &t, boxes);
         let mut st = RayStats::default();
@@ -229,7 +242,8 @@ fn closest_is_nearest_through_inner_node() {
         assert_eq!((st.nodes, st.tris, st.boxes), want[0], "{boxes:?}");
         let mut st = RayStats::default();
         assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0, &mut st));
-        // Any hit stops the query: the root's own triangle (t = 2) is tested first and hit.
+        // Any hit stops the query (with the cluster's box the root's own triangle, t = 2, is
+        // tested on visiting the root, and hit).
         assert_eq!((st.nodes, st.tris, st.boxes), want[1], "{boxes:?}");
         let mut st = RayStats::default();
         assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 1.5, &mut st));

@@ -327,6 +327,12 @@ pub fn markdown(d: &ReportData) -> String {
     fig(&mut md, d, "clusters");
     fig(&mut md, d, "children");
     let _ = writeln!(md, "## 2. Ray-casting test\n");
+    let _ = writeln!(
+        md,
+        "Batch occlusion, tight traversal boxes (`raybench --boxes tight`: each node's box shrunk \
+         to its contents, a node's own surfaces behind a box of their own; same nodes and \
+         surfaces as the tree).\n"
+    );
     let sah = by(&d.rays, Strategy::Sah, |r| r.strategy).map(|r| r.mrays_per_s);
     let _ = writeln!(
         md,
