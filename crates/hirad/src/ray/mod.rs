@@ -247,12 +247,13 @@ impl Lane {
         }
         self.len -= 1;
         let n = self.stack[self.len as usize];
-        let (ts, nt, g0, ng) = l.node(n);
-        if nt > 0 && l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
-            return Step::Hit;
-        }
+        let (mut ts, mut nt, g0, ng) = l.node(n);
         for g in &l.groups[g0..g0 + ng] {
-            let (mask, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+            let (all, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+            if all & g.eager as u32 != 0 {
+                (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+            }
+            let mask = all & !(g.eager as u32);
             let len = self.len as usize;
             if len + 4 > LANE_STACK {
                 if mask == 0 {
@@ -265,6 +266,9 @@ impl Lane {
                 self.stack[len + (r as usize & 3)] = c;
             }
             self.len += mask.count_ones();
+        }
+        if nt > 0 && l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
+            return Step::Hit;
         }
         if self.len > 0 {
             l.prefetch(self.stack[self.len as usize - 1]);
@@ -570,16 +574,20 @@ impl<'a> RayCaster<'a> {
             if STATS {
                 stats.nodes += Layout::is_node(n) as u64;
             }
-            let (ts, nt, g0, ng) = l.node(n);
-            if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
-                return true;
-            }
+            let (mut ts, mut nt, g0, ng) = l.node(n);
             for g in &l.groups[g0..g0 + ng] {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (mask, tn) = r4.test(g, tmin, tmax);
+                let (all, tn) = r4.test(g, tmin, tmax);
+                if all & g.eager as u32 != 0 {
+                    (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+                }
+                let mask = all & !(g.eager as u32);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+            }
+            if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
+                return true;
             }
         }
         false

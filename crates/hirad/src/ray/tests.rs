@@ -107,8 +107,8 @@ fn layout_is_depth_first_with_inner_surfaces() {
             Boxes::Cluster => (1, 0),
         };
         assert_eq!(
-            (g.tri_start, g.num_tris, g.num_groups, g.lanes, g.run),
-            (0, 1, 1, lanes, run)
+            (g.tri_start, g.num_tris, g.num_groups, g.lanes, g.run, g.eager),
+            (0, 1, 1, lanes, run, run as u8)
         );
         assert_eq!(l.packets.len(), 2);
         assert_eq!(l.packets[0].id, [1, u32::MAX, u32::MAX, u32::MAX]);
@@ -144,6 +144,49 @@ fn layout_is_depth_first_with_inner_surfaces() {
         assert!(g.b[0][2] > g.b[3][2]);
         assert_eq!(l.root_box, [0.0, 0.0, 0.0, 2.0, 2.0, 1.0]);
     }
+}
+
+#[test]
+fn a_sparse_run_is_visited_in_distance_order() {
+    // A root holding 99 small triangles spread along a row (a random line through their box
+    // crosses 0.25 of them, 0.0025 per triangle tested) and a leaf child holding the last
+    // one: the run's reference is pushed, not tested at once.
+    let s = row_of_triangles("row", 100);
+    let mut b = BuildTree::default();
+    let leaf = b.push(BuildNode {
+        bbox: s.tri_bbox(99),
+        children: vec![],
+        surfaces: vec![99],
+    });
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: vec![leaf],
+        surfaces: (0..99).collect(),
+    });
+    let t = ClusterTree::from_build(b, 100, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let g = &rc.layout.groups[0];
+    assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
+    // Down onto the leaf's triangle: the leaf is visited, the run's box (x ≤ 197) is missed.
+    let o = Vec3::new(2.0 * 99.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert_eq!((st.nodes, st.tris), (2, 1));
+    // Down onto triangle 50 of the run: the run is visited and tested up to the sixteen-wide
+    // packet holding triangle 50 (the fourth: 64 triangles).
+    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert_eq!((st.nodes, st.tris), (1, 64));
+    let mut out = [false; 2];
+    let segs = [0.25f32, 1.25].map(|y| Segment {
+        origin: Vec3::new(100.25, y, 1.0),
+        dir: -Vec3::Z,
+        tmin: 0.0,
+        tmax: 2.0,
+    });
+    rc.occluded_stream(&segs, &mut out);
+    assert_eq!(out, [true, false]);
 }
 
 #[test]
@@ -226,11 +269,13 @@ fn closest_is_nearest_through_inner_node() {
     // Counters, for both kinds of boxes: (closest from above, any hit from below, any hit
     // from below with tmax = 1.5) as (nodes, triangles, boxes).
     for (boxes, want) in [
-        // The root's own triangle is tested on visiting the root.
-        (Boxes::Cluster, [(1, 1, 2), (1, 1, 1), (2, 2, 2)]),
-        // The root's own triangle has a lane (one box test more), visited like a leaf in order
-        // of distance: from below, the nearer leaf first, whose triangle is hit.
-        (Boxes::Tight, [(1, 1, 3), (2, 1, 3), (2, 1, 3)]),
+        // The root's own triangle is tested on visiting the root (after its children's boxes
+        // for occlusion).
+        (Boxes::Cluster, [(1, 1, 2), (1, 1, 2), (2, 2, 2)]),
+        // The root's own triangle has a lane (one box test more). Closest hit visits it like a
+        // leaf, in order of distance; occlusion tests it as soon as its box is hit (a big
+        // triangle filling its box: `EAGER_HITS_PER_TEST`), before the nearer leaf.
+        (Boxes::Tight, [(1, 1, 3), (1, 1, 3), (2, 1, 3)]),
     ] {
         let rc = RayCaster::with_boxes(&s, &t, boxes);
         let mut st = RayStats::default();
