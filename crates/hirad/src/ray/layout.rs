@@ -176,6 +176,10 @@ pub(super) struct Layout {
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
     pub groups: Vec<Group>,
+    /// Per group, 6 bits per lane ([`face_bits`]): bit `a` (`3 + a`) set when everything in
+    /// the lane that touches the plane of the box's min (max) face along axis `a` lies in
+    /// that plane.
+    pub faces: Vec<u32>,
     /// Triangles of runs shorter than [`WIDE_MIN`], in node order, four to a packet.
     pub packets: Vec<Packet>,
     /// Triangles of runs of [`WIDE_MIN`] or more, in node order, sixteen to a packet.
@@ -308,6 +312,8 @@ impl Layout {
         // contents), children first.
         let mut run_bound = vec![Aabb::EMPTY; n];
         let mut bound = vec![Aabb::EMPTY; n];
+        let mut run_faces = vec![0u8; n];
+        let mut node_faces = vec![0u8; n];
         for &id in order.iter().rev() {
             let mut rb = Aabb::EMPTY;
             for s in surfs(id) {
@@ -327,9 +333,18 @@ impl Layout {
                 b.grow_box(&cb);
             }
             bound[id as usize] = b;
+            let tris = || {
+                surfs(id)
+                    .map(|s| scene.tri_bbox(s as usize))
+                    .map(|t| (t, flat_bits(&t)))
+            };
+            run_faces[id as usize] = face_bits(&rb, tris());
+            let below = kids(id).map(|c| (bound[c as usize], node_faces[c as usize]));
+            node_faces[id as usize] = face_bits(&b, tris().chain(below));
         }
         // Pass 2: fill in.
         let mut groups = vec![Group::default(); ng];
+        let mut faces = vec![0u32; ng];
         let empty = Packet {
             v: [[0.0; 4]; 9],
             id: [u32::MAX; 4],
@@ -351,12 +366,15 @@ impl Layout {
                 for (i, &c) in k.iter().enumerate() {
                     let g = &mut groups[g0 + i / 4];
                     g.set_lane(i % 4, &bound[c as usize], refs[c as usize]);
+                    faces[g0 + i / 4] |= (node_faces[c as usize] as u32) << (8 * (i % 4));
                 }
                 let nt = surfs(id).count();
                 // The run gets a lane of its own when the last group has one free (a node
                 // without children has no box to spare: its run is its box).
-                let run_lane =
-                    boxes == Boxes::Tight && nt > 0 && k.len() % 4 != 0 && ng < RUN as usize;
+                let run_lane = boxes == Boxes::Tight
+                    && nt > 0
+                    && !k.len().is_multiple_of(4)
+                    && ng < RUN as usize;
                 let at = if run_lane { g0 + num_groups - 1 } else { g0 };
                 let g = &mut groups[at];
                 g.tri_start = tri_pos[id as usize] as u32;
@@ -364,6 +382,7 @@ impl Layout {
                 if run_lane {
                     let lane = k.len() % 4;
                     g.set_lane(lane, &run_bound[id as usize], RUN | at as u32);
+                    faces[at] |= (run_faces[id as usize] as u32) << (8 * lane);
                     g.run = 1 << lane;
                     // Expected number of the run's triangles crossed by a random line
                     // through its box: 2·(triangle area) / (box surface area).
@@ -399,6 +418,7 @@ impl Layout {
             root_box: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
             root: Some(refs[0]),
             groups,
+            faces,
             packets,
             wide,
         }
@@ -407,6 +427,7 @@ impl Layout {
     /// Bytes used by the layout.
     pub(super) fn memory_bytes(&self) -> usize {
         self.groups.len() * std::mem::size_of::<Group>()
+            + self.faces.len() * std::mem::size_of::<u32>()
             + self.packets.len() * std::mem::size_of::<Packet>()
             + self.wide.len() * std::mem::size_of::<Wide>()
     }
@@ -546,6 +567,34 @@ impl Layout {
     }
 }
 
+/// Face bits of a triangle's box: bits `a` and `3 + a` when it is flat along axis `a` (it
+/// lies in the plane of both faces).
+fn flat_bits(t: &Aabb) -> u8 {
+    (0..3)
+        .filter(|&a| t.min[a] == t.max[a])
+        .fold(0, |m, a| m | 1 << a | 1 << (a + 3))
+}
+
+/// Face bits of box `b` holding `items` (boxes and their own face bits): bit `a` (`3 + a`)
+/// stays set when every item that touches the plane of `b`'s min (max) face along axis `a`
+/// has that bit, i.e. lies in that plane. A ray lying in such a face's plane meets only
+/// triangles lying in the plane (coplanar with the ray: never hit, see
+/// [`Ray4::flat_in_plane`]) and triangles whose boxes it misses (strictly on one side).
+fn face_bits(b: &Aabb, items: impl Iterator<Item = (Aabb, u8)>) -> u8 {
+    let mut m = 0b11_1111u8;
+    for (x, f) in items {
+        for a in 0..3 {
+            if x.min[a] == b.min[a] && f & (1 << a) == 0 {
+                m &= !(1 << a);
+            }
+            if x.max[a] == b.max[a] && f & (1 << (a + 3)) == 0 {
+                m &= !(1 << (a + 3));
+            }
+        }
+    }
+    m
+}
+
 /// Store triangle `id` with corners `tv` in `lane` of a packet.
 fn put<const N: usize>(
     v: &mut [[f32; N]; 9],
@@ -643,21 +692,27 @@ impl Ray4 {
         self.in_plane = (0..3).filter(|&a| r.d[a] == 0.0).fold(0, |m, a| m | 1 << a);
     }
 
-    /// Lanes of `g` whose box is flat along an axis in which the ray lies in the box's plane
-    /// (`min = max = origin` there, direction component zero). Everything in such a box lies
-    /// in that plane, so it is coplanar with the ray: the watertight test computes all three
-    /// sheared edge functions as exactly zero (the in-plane coordinate is one of the two
-    /// sheared axes and its shear constant is zero) and reports no hit. Skipping these boxes
-    /// changes no result; it keeps a ray running along a floor from visiting every floor cell
+    /// Lanes of `g` that the ray only touches along a face: it lies in the plane of a face of
+    /// the lane's box (direction component zero, origin on the face) and everything in the
+    /// lane that touches that plane lies in it (`faces`, from [`face_bits`]; a box flat in
+    /// the plane is one case). Triangles in the plane are coplanar with the ray: the
+    /// watertight test computes all three sheared edge functions as exactly zero (the in-plane
+    /// coordinate is one of the two sheared axes and its shear constant is zero) and reports
+    /// no hit. The others lie strictly on one side of the plane, and the ray misses their
+    /// boxes as it would in a leaf of their own. Skipping these lanes changes no result; it
+    /// keeps a ray running along a floor from visiting every cell standing on the floor that
     /// it passes (the slab test itself must accept them: the ray touches them).
     #[inline(always)]
-    fn flat_in_plane(&self, g: &Group) -> u32 {
+    fn flat_in_plane(&self, g: &Group, faces: u32) -> u32 {
         let mut m = 0;
         for a in 0..3 {
             if self.in_plane & (1 << a) != 0 {
                 let o = self.o[a][0];
                 for lane in 0..4 {
-                    if g.b[a][lane] == o && g.b[a + 3][lane] == o {
+                    let f = faces >> (8 * lane);
+                    if (g.b[a][lane] == o && f & (1 << a) != 0)
+                        || (g.b[a + 3][lane] == o && f & (1 << (a + 3)) != 0)
+                    {
                         m |= 1 << lane;
                     }
                 }
@@ -670,7 +725,7 @@ impl Ray4 {
     /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit and not ruled out by
     /// [`Ray4::flat_in_plane`]; `tn` its entry distance.
     #[inline(always)]
-    pub(super) fn test(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [f32; 4]) {
+    pub(super) fn test(&self, g: &Group, faces: &u32, tmin: f32, tmax: f32) -> (u32, [f32; 4]) {
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::*;
@@ -697,7 +752,7 @@ impl Ray4 {
                 let hit = _mm_cmple_ps(tn, _mm_mul_ps(tf, _mm_set1_ps(BOX_SLACK)));
                 let mut mask = _mm_movemask_ps(hit) as u32;
                 if self.in_plane != 0 {
-                    mask &= !self.flat_in_plane(g);
+                    mask &= !self.flat_in_plane(g, *faces);
                 }
                 let mut out = [0f32; 4];
                 _mm_storeu_ps(out.as_mut_ptr(), tn);
@@ -723,7 +778,7 @@ impl Ray4 {
                 out[lane] = tn;
             }
             if self.in_plane != 0 {
-                mask &= !self.flat_in_plane(g);
+                mask &= !self.flat_in_plane(g, *faces);
             }
             (mask, out)
         }
@@ -734,8 +789,14 @@ impl Ray4 {
     /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
     /// without data-dependent branches (random rays make them unpredictable).
     #[inline(always)]
-    pub(super) fn test_ranked(&self, g: &Group, tmin: f32, tmax: f32) -> (u32, [u32; 4]) {
-        let (all, tn) = self.test(g, tmin, tmax);
+    pub(super) fn test_ranked(
+        &self,
+        g: &Group,
+        faces: &u32,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [u32; 4]) {
+        let (all, tn) = self.test(g, faces, tmin, tmax);
         let mask = all & !(g.eager as u32);
         #[cfg(target_arch = "x86_64")]
         {

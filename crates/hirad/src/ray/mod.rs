@@ -248,8 +248,8 @@ impl Lane {
         self.len -= 1;
         let n = self.stack[self.len as usize];
         let (mut ts, mut nt, g0, ng) = l.node(n);
-        for g in &l.groups[g0..g0 + ng] {
-            let (all, rank) = self.r4.test_ranked(g, self.tmin, self.tmax);
+        for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
+            let (all, rank) = self.r4.test_ranked(g, f, self.tmin, self.tmax);
             if all & g.eager as u32 != 0 {
                 (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
             }
@@ -575,11 +575,11 @@ impl<'a> RayCaster<'a> {
                 stats.nodes += Layout::is_node(n) as u64;
             }
             let (mut ts, mut nt, g0, ng) = l.node(n);
-            for g in &l.groups[g0..g0 + ng] {
+            for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (all, tn) = r4.test(g, tmin, tmax);
+                let (all, tn) = r4.test(g, f, tmin, tmax);
                 if all & g.eager as u32 != 0 {
                     (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
                 }
@@ -634,7 +634,7 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (mask, tn) = r4.test(g, tmin, best_t);
+                let (mask, tn) = r4.test(g, &l.faces[g0], tmin, best_t);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
                     node: c,
                     t,
@@ -643,11 +643,11 @@ impl<'a> RayCaster<'a> {
             }
             // More than four children: push every hit, then sort the new entries.
             let before = stack.size();
-            for g in &l.groups[g0..g0 + ng] {
+            for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (mut mask, tn) = r4.test(g, tmin, best_t);
+                let (mut mask, tn) = r4.test(g, f, tmin, best_t);
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;

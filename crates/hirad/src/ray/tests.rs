@@ -107,7 +107,14 @@ fn layout_is_depth_first_with_inner_surfaces() {
             Boxes::Cluster => (1, 0),
         };
         assert_eq!(
-            (g.tri_start, g.num_tris, g.num_groups, g.lanes, g.run, g.eager),
+            (
+                g.tri_start,
+                g.num_tris,
+                g.num_groups,
+                g.lanes,
+                g.run,
+                g.eager
+            ),
             (0, 1, 1, lanes, run, run as u8)
         );
         assert_eq!(l.packets.len(), 2);
@@ -313,9 +320,9 @@ fn stack_spills_to_heap_in_order() {
 fn group_test_equals_scalar_slab() {
     // The 4-wide box test of a group gives the scalar slab test's answer and entry distance
     // in every lane, including rays with zero direction components (both signs) whose origin
-    // lies in a box plane (0·∞ = NaN), and never hits an empty lane. The one exception: a box
-    // flat along an axis in which the ray lies in the box's plane is skipped (its contents are
-    // coplanar with the ray; `Ray4::flat_in_plane`).
+    // lies in a box plane (0·∞ = NaN), and never hits an empty lane. The one exception: a lane
+    // is skipped when the ray lies in the plane of one of its box's faces whose face bit is set
+    // (what touches that plane lies in it: coplanar with the ray; `Ray4::flat_in_plane`).
     let mut g = crate::rng::SplitMix64::new(4);
     let grid = |g: &mut crate::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
     let mut hits = 0;
@@ -330,6 +337,7 @@ fn group_test_equals_scalar_slab() {
         let r4 = layout::Ray4::new(&r);
         let mut grp = layout::Group::default();
         let mut boxes = Vec::new();
+        let faces = (g.next_u64() & 0x3F3F3F) as u32;
         for lane in 0..3 {
             let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
             let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
@@ -340,11 +348,16 @@ fn group_test_equals_scalar_slab() {
             }
             boxes.push([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]);
         }
-        let (mask, tn) = r4.test(&grp, 0.0, 10.0);
+        let (mask, tn) = r4.test(&grp, &faces, 0.0, 10.0);
         assert_eq!(mask & 8, 0, "empty lane hit");
         for (lane, b) in boxes.iter().enumerate() {
             let s = r.slab(b, 0.0, 10.0);
-            let flat_in_plane = (0..3).any(|a| d[a] == 0.0 && b[a] == o[a] && b[a + 3] == o[a]);
+            let f = faces >> (8 * lane);
+            let flat_in_plane = (0..3).any(|a| {
+                d[a] == 0.0
+                    && ((b[a] == o[a] && f >> a & 1 == 1)
+                        || (b[a + 3] == o[a] && f >> (a + 3) & 1 == 1))
+            });
             skipped += (s.is_some() && flat_in_plane) as u32;
             let s = s.filter(|_| !flat_in_plane);
             assert_eq!(mask >> lane & 1 == 1, s.is_some(), "{o} {d} {b:?}");
@@ -427,8 +440,8 @@ fn ranked_push_order_equals_sorted_push() {
             }
             grp.child[lane] = lane as u32;
         }
-        let (mask, tn) = r4.test(&grp, 0.0, 100.0);
-        let (mask2, rank) = r4.test_ranked(&grp, 0.0, 100.0);
+        let (mask, tn) = r4.test(&grp, &0, 0.0, 100.0);
+        let (mask2, rank) = r4.test_ranked(&grp, &0, 0.0, 100.0);
         assert_eq!(mask, mask2);
         let mut sorted: Stack<u32, 8> = Stack::new();
         push_sorted(
