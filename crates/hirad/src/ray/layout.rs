@@ -23,7 +23,10 @@
 //! gave it — `kdt`/`obt` nodes keep their k-d cells, mostly empty space — and the triangles
 //! of an inner node whose last group has a free lane get a box of their own in that lane: the
 //! node's one SIMD test then decides them with its children, and they are tested only when
-//! the ray hits their box (straddling surfaces of a k-d node, a strip of floor). With
+//! the ray hits their box (straddling surfaces of a k-d node, a strip of floor); occlusion
+//! tests them at once or visits them in distance order like a leaf ([`EAGER_HITS_PER_TEST`]).
+//! Every lane also carries six face bits ([`face_bits`]) that let a ray lying in the plane of
+//! a face skip it (`Ray4::flat_in_plane`). With
 //! [`Boxes::Cluster`] the boxes are the strategy's boxes grown to contain their contents
 //! exactly (strategies may leave an f32 slack that `validate` tolerates; a ray grazing such
 //! a triangle must still reach it, so that the result equals brute force for any tree), and
