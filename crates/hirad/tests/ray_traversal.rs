@@ -403,12 +403,27 @@ fn boxes_with_slack_still_exact() {
     assert!(occ > 100, "{occ}");
 }
 
-/// Segments lying in the plane of a floor (a 48×48 grid of quads at y = 0.25 with boxes
-/// standing on it) are coplanar with every floor triangle, which the watertight test never
-/// reports as hit: the traversal skips the flat floor boxes such a ray touches and tests almost
-/// no triangles, and still agrees with brute force (the boxes standing on the floor occlude).
-#[test]
-fn rays_in_a_floor_plane_skip_the_floor() {
+/// Traversal counters of occlusion queries over `segs`.
+fn occlusion_stats(scene: &Scene, tree: &ClusterTree, boxes: Boxes, segs: &[Segment]) -> RayStats {
+    let rc = RayCaster::with_boxes(scene, tree, boxes);
+    let mut st = RayStats::default();
+    for s in segs {
+        rc.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st);
+    }
+    st
+}
+
+/// A floor of 48×48 unit squares (two triangles each) at y = 0.25, `quads` upright quads of
+/// width `w` and height 1 at random positions at least `margin` from the floor's edges, their
+/// bottom `lift` above the floor, and `segs` random segments lying in the floor's plane.
+fn floor_with_quads(
+    seed: u64,
+    quads: usize,
+    margin: f32,
+    w: f32,
+    lift: f32,
+    segs: usize,
+) -> (Scene, Vec<Segment>) {
     let n = 48usize;
     let y = 0.25f32;
     let mut pos = Vec::new();
@@ -425,36 +440,42 @@ fn rays_in_a_floor_plane_skip_the_floor() {
             tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
         }
     }
-    // Upright quads standing on the floor (their bottom edge on it).
-    let mut g = SplitMix64::new(7);
-    for _ in 0..12 {
-        let x = 2.0 + 44.0 * g.next_f32();
-        let z = 2.0 + 44.0 * g.next_f32();
+    let mut g = SplitMix64::new(seed);
+    let span = n as f32 - 2.0 * margin;
+    for _ in 0..quads {
+        let x = margin + span * g.next_f32();
+        let z = margin + span * g.next_f32();
         let b = pos.len() as u32;
         pos.extend([
-            Vec3::new(x, y, z),
-            Vec3::new(x + 1.5, y, z),
-            Vec3::new(x + 1.5, y + 1.0, z),
-            Vec3::new(x, y + 1.0, z),
+            Vec3::new(x, y + lift, z),
+            Vec3::new(x + w, y + lift, z),
+            Vec3::new(x + w, y + lift + 1.0, z),
+            Vec3::new(x, y + lift + 1.0, z),
         ]);
         tris.push([b, b + 1, b + 2]);
         tris.push([b, b + 2, b + 3]);
     }
     let scene = scene_from(pos, tris);
-    let segs: Vec<Segment> = (0..2000)
+    let segs = (0..segs)
         .map(|_| {
             let p = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
             let q = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
             Segment::between(p, q)
         })
         .collect();
+    (scene, segs)
+}
+
+/// Segments lying in the plane of a floor (a 48×48 grid of quads at y = 0.25 with boxes
+/// standing on it) are coplanar with every floor triangle, which the watertight test never
+/// reports as hit: the traversal skips the flat floor boxes such a ray touches and tests almost
+/// no triangles, and still agrees with brute force (the boxes standing on the floor occlude).
+#[test]
+fn rays_in_a_floor_plane_skip_the_floor() {
+    // Upright quads standing on the floor (their bottom edge on it).
+    let (scene, segs) = floor_with_quads(7, 12, 2.0, 1.5, 0.0, 2000);
     let tris_per_ray = |tree: &ClusterTree, boxes: Boxes| {
-        let rc = RayCaster::with_boxes(&scene, tree, boxes);
-        let mut st = RayStats::default();
-        for s in &segs {
-            rc.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st);
-        }
-        st.tris_per_ray()
+        occlusion_stats(&scene, tree, boxes, &segs).tris_per_ray()
     };
     let tree = ClusterTree::build(&scene, Strategy::Sah, &ClusterConfig::default());
     let occ = check_against_brute(&scene, &tree, &segs);
@@ -482,52 +503,11 @@ fn rays_in_a_floor_plane_skip_the_floor() {
 /// every cell along the segment. Nothing is occluded, as brute force says.
 #[test]
 fn floor_rays_skip_cells_standing_on_the_floor() {
-    let n = 48usize;
-    let y = 0.25f32;
-    let mut pos = Vec::new();
-    let mut tris = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            pos.push(Vec3::new(i as f32, y, j as f32));
-        }
-    }
-    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
-    for j in 0..n {
-        for i in 0..n {
-            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    let mut g = SplitMix64::new(11);
-    for _ in 0..40 {
-        let x = 1.0 + 46.0 * g.next_f32();
-        let z = 1.0 + 46.0 * g.next_f32();
-        let b = pos.len() as u32;
-        pos.extend([
-            Vec3::new(x, y + 0.5, z),
-            Vec3::new(x + 1.0, y + 0.5, z),
-            Vec3::new(x + 1.0, y + 1.5, z),
-            Vec3::new(x, y + 1.5, z),
-        ]);
-        tris.push([b, b + 1, b + 2]);
-        tris.push([b, b + 2, b + 3]);
-    }
-    let scene = scene_from(pos, tris);
-    let segs: Vec<Segment> = (0..1000)
-        .map(|_| {
-            let p = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
-            let q = Vec3::new(n as f32 * g.next_f32(), y, n as f32 * g.next_f32());
-            Segment::between(p, q)
-        })
-        .collect();
+    let (scene, segs) = floor_with_quads(11, 40, 1.0, 1.0, 0.5, 1000);
     let kdt = ClusterTree::build(&scene, Strategy::Kdt, &ClusterConfig::default());
     assert_eq!(check_against_brute(&scene, &kdt, &segs), 0);
     let stats = |boxes: Boxes| {
-        let rc = RayCaster::with_boxes(&scene, &kdt, boxes);
-        let mut st = RayStats::default();
-        for s in &segs {
-            rc.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st);
-        }
+        let st = occlusion_stats(&scene, &kdt, boxes, &segs);
         (st.nodes_per_ray(), st.tris_per_ray())
     };
     assert_eq!(stats(Boxes::Tight), (1.0, 0.0));

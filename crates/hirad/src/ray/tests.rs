@@ -73,20 +73,26 @@ fn one_leaf_per_triangle(s: &Scene) -> ClusterTree {
     ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default())
 }
 
-/// Root holding triangle 1 with one leaf child holding triangle 0.
-fn inner_surface_tree(scene: &Scene) -> ClusterTree {
+/// Root holding the triangles `own` with one leaf child holding triangle `leaf`.
+fn root_and_leaf(scene: &Scene, own: Vec<u32>, leaf: u32) -> ClusterTree {
     let mut b = BuildTree::default();
-    let leaf = b.push(BuildNode {
-        bbox: scene.tri_bbox(0),
+    let child = b.push(BuildNode {
+        bbox: scene.tri_bbox(leaf as usize),
         children: vec![],
-        surfaces: vec![0],
+        surfaces: vec![leaf],
     });
     b.root = b.push(BuildNode {
         bbox: scene.bbox,
-        children: vec![leaf],
-        surfaces: vec![1],
+        children: vec![child],
+        surfaces: own,
     });
-    ClusterTree::from_build(b, 2, Strategy::Sah, ClusterConfig::default())
+    let n = scene.num_triangles();
+    ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default())
+}
+
+/// Root holding triangle 1 with one leaf child holding triangle 0.
+fn inner_surface_tree(scene: &Scene) -> ClusterTree {
+    root_and_leaf(scene, vec![1], 0)
 }
 
 #[test]
@@ -159,18 +165,7 @@ fn a_sparse_run_is_visited_in_distance_order() {
     // crosses 0.25 of them, 0.0025 per triangle tested) and a leaf child holding the last
     // one: the run's reference is pushed, not tested at once.
     let s = row_of_triangles("row", 100);
-    let mut b = BuildTree::default();
-    let leaf = b.push(BuildNode {
-        bbox: s.tri_bbox(99),
-        children: vec![],
-        surfaces: vec![99],
-    });
-    b.root = b.push(BuildNode {
-        bbox: s.bbox,
-        children: vec![leaf],
-        surfaces: (0..99).collect(),
-    });
-    let t = ClusterTree::from_build(b, 100, Strategy::Sah, ClusterConfig::default());
+    let t = root_and_leaf(&s, (0..99).collect(), 99);
     let rc = RayCaster::new(&s, &t);
     let g = &rc.layout.groups[0];
     assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
