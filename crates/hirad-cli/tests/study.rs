@@ -472,3 +472,42 @@ fn study_killed_midway_resumes_to_the_same_result() {
         assert!(md.contains("## Runs"), "{md}");
     }
 }
+
+/// `--ray-boxes cluster` runs the ray-casting test through the strategies' own boxes: the
+/// records, the CSV and the report say so, and the occluded counts equal the default (tight)
+/// run's, while kdt (k-d cells as boxes) visits at least as many nodes.
+#[test]
+fn ray_boxes_choose_the_traversal_boxes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rows = |dir: &Path| -> Vec<Vec<String>> {
+        let csv = std::fs::read_to_string(dir.join("raybench.csv")).unwrap();
+        let mut lines = csv.lines();
+        assert_eq!(
+            lines.next().unwrap(),
+            "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray"
+        );
+        lines
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect()
+    };
+    let (t, c) = (tmp.path().join("tight"), tmp.path().join("cluster"));
+    let only = ["--only", "raybench", "--report"];
+    assert!(hirad(&t, &only).status().unwrap().success());
+    let mut args = only.to_vec();
+    args.extend(["--ray-boxes", "cluster"]);
+    assert!(hirad(&c, &args).status().unwrap().success());
+    let (rt, rc) = (rows(&t), rows(&c));
+    assert_eq!(rt.len(), 2);
+    for (a, b) in rt.iter().zip(&rc) {
+        assert_eq!(a[1], b[1]);
+        assert_eq!((a[4].as_str(), b[4].as_str()), ("tight", "cluster"));
+        // Same occluded count; no more nodes per ray with tight boxes.
+        assert_eq!(a[8], b[8]);
+        let nodes = |r: &Vec<String>| r[9].parse::<f64>().unwrap();
+        assert!(nodes(a) <= nodes(b), "{a:?} {b:?}");
+    }
+    let md = std::fs::read_to_string(c.join("report.md")).unwrap();
+    assert!(md.contains("Batch occlusion, cluster boxes"), "{md}");
+    let md = std::fs::read_to_string(t.join("report.md")).unwrap();
+    assert!(md.contains("Batch occlusion, tight boxes"), "{md}");
+}

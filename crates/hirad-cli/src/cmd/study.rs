@@ -5,6 +5,7 @@ use crate::progress::{overall_bar, Bars};
 use crate::Global;
 use hirad::cluster::Strategy;
 use hirad::radiosity::{ClusterEmission, Oracle, SolverConfig, VisibilityMode};
+use hirad::ray::Boxes;
 use hirad::study::run::{self, Study, StudyConfig};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -58,6 +59,10 @@ pub struct Args {
     /// Pairs of the ray-casting test (0 skips it).
     #[arg(long, default_value_t = 100_000)]
     pub pairs: usize,
+    /// Boxes of the ray-casting test: `tight` (shrunk to their contents) or `cluster` (the
+    /// strategies' own, as in the paper); see `raybench --boxes`.
+    #[arg(long, default_value = "tight", value_parser = ["tight", "cluster"])]
+    pub ray_boxes: String,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Timed builds per strategy (median reported).
@@ -145,6 +150,8 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         size: parse_size(&a.size)?,
         reference_spp: a.spp,
         ray_pairs: a.pairs,
+        ray_boxes: Boxes::parse(&a.ray_boxes)
+            .ok_or_else(|| anyhow::anyhow!("unknown --ray-boxes {}", a.ray_boxes))?,
         seed: a.seed,
         build_repeats: a.repeat,
         volume: visibility == VisibilityMode::Volume,

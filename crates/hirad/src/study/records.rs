@@ -3,6 +3,7 @@
 //! machines can be merged by copying files.
 
 use crate::cluster::Strategy;
+use crate::ray::Boxes;
 use serde::{Deserialize, Serialize};
 
 /// Facts about the run that produced a record (`experiments.md`: scene, parameters, version,
@@ -109,6 +110,9 @@ pub struct RayRecord {
     pub strategy: Strategy,
     pub pairs: usize,
     pub seed: u64,
+    /// Boxes the traversal tested (records written before the choice existed: tight).
+    #[serde(default)]
+    pub boxes: Boxes,
     pub build_ms: f64,
     pub query_ms: f64,
     pub mrays_per_s: f64,

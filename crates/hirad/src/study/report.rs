@@ -4,6 +4,7 @@
 use super::records::{ClusterRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
 use super::score::Monotonicity;
 use crate::cluster::Strategy;
+use crate::ray::Boxes;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -327,11 +328,19 @@ pub fn markdown(d: &ReportData) -> String {
     fig(&mut md, d, "clusters");
     fig(&mut md, d, "children");
     let _ = writeln!(md, "## 2. Ray-casting test\n");
+    let boxes = d.rays.first().map(|r| r.boxes).unwrap_or_default();
     let _ = writeln!(
         md,
-        "Batch occlusion, tight traversal boxes (`raybench --boxes tight`: each node's box shrunk \
-         to its contents, a node's own surfaces behind a box of their own; same nodes and \
-         surfaces as the tree).\n"
+        "Batch occlusion, {} boxes ({}).\n",
+        boxes.name(),
+        match boxes {
+            Boxes::Tight => {
+                "each node's box shrunk to its contents, a node's own surfaces behind a box of \
+                 their own; same nodes and surfaces as the tree; `--ray-boxes cluster` for the \
+                 strategies' own boxes"
+            }
+            Boxes::Cluster => "the strategies' own boxes, as in the paper",
+        }
     );
     let sah = by(&d.rays, Strategy::Sah, |r| r.strategy).map(|r| r.mrays_per_s);
     let _ = writeln!(

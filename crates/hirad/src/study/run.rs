@@ -25,7 +25,7 @@ use super::store::Store;
 use crate::cluster::{stats::ClusterStats, ClusterConfig, ClusterTree, Prims, Strategy};
 use crate::progress::Progress;
 use crate::radiosity::{self, SolverConfig, VisibilityMode};
-use crate::ray::{sample::sample_segments, RayCaster};
+use crate::ray::{sample::sample_segments, Boxes, RayCaster};
 use crate::render::{self, CameraOverrides, CameraView, Image, RasterOptions};
 use crate::scene::{Scene, SceneOptions};
 use crate::{Error, Result};
@@ -62,6 +62,8 @@ pub struct StudyConfig {
     pub reference_spp: u32,
     /// Ray-casting test pairs and seed.
     pub ray_pairs: usize,
+    /// Boxes the ray-casting test traverses (`cluster`: the strategies' own, as in the paper).
+    pub ray_boxes: Boxes,
     pub seed: u64,
     /// Timed builds per strategy (median reported).
     pub build_repeats: usize,
@@ -93,6 +95,7 @@ impl Default for StudyConfig {
             supersample: 2,
             reference_spp: 256,
             ray_pairs: 100_000,
+            ray_boxes: Boxes::Tight,
             seed: 1,
             build_repeats: 5,
             volume: false,
@@ -517,7 +520,7 @@ impl<'a> Study<'a> {
         let segs = sample_segments(&self.scene, self.cfg.ray_pairs, self.cfg.seed);
         let t = Instant::now();
         let tree = self.tree(s);
-        let caster = RayCaster::new(&self.scene, &tree);
+        let caster = RayCaster::with_boxes(&self.scene, &tree, self.cfg.ray_boxes);
         let build_ms = ms(t);
         let t = Instant::now();
         let occluded = caster.count_occluded(&segs);
@@ -528,6 +531,7 @@ impl<'a> Study<'a> {
             strategy: s,
             pairs: segs.len(),
             seed: self.cfg.seed,
+            boxes: self.cfg.ray_boxes,
             build_ms,
             query_ms,
             mrays_per_s: segs.len() as f64 / (query_ms * 1e3).max(1e-12),
@@ -880,12 +884,20 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     )?);
     files.push(write_csv(
         &out.join("raybench.csv"),
-        "scene,strategy,pairs,seed,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray",
+        "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray",
         d.rays.iter().map(|r| {
             format!(
-                "{scene},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}",
-                r.strategy, r.pairs, r.seed, r.build_ms, r.query_ms, r.mrays_per_s, r.occluded,
-                r.nodes_per_ray, r.tris_per_ray
+                "{scene},{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}",
+                r.strategy,
+                r.pairs,
+                r.seed,
+                r.boxes.name(),
+                r.build_ms,
+                r.query_ms,
+                r.mrays_per_s,
+                r.occluded,
+                r.nodes_per_ray,
+                r.tris_per_ray
             )
         }),
     )?);
