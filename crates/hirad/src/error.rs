@@ -66,3 +66,12 @@ impl Error {
 
 /// Result alias of the library.
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// `a`, `a or b`, `a, b or c` (the choices of [`choice!`]-made `parse` errors).
+pub(crate) fn alternatives(names: &[&str]) -> String {
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    }
+}

@@ -15,6 +15,34 @@
 //! - [`metrics`]: CIELUV image error;
 //! - [`study`]: the paper's experiments as reproducible sweeps.
 
+/// `parse` (case-insensitive) and `name` of a command-line choice, from one table of names;
+/// the error lists the names ("unknown refinement oracle 'x' (bf or error)"). Defined before
+/// the modules so that every module can use it.
+macro_rules! choice {
+    ($t:ident, $what:literal, $($v:ident => $s:literal),+ $(,)?) => {
+        impl $t {
+            /// Parse the name given on the command line (any case).
+            pub fn parse(s: &str) -> $crate::Result<$t> {
+                match s.to_ascii_lowercase().as_str() {
+                    $($s => Ok($t::$v),)+
+                    _ => Err($crate::Error::Config(format!(
+                        "unknown {} '{s}' ({})",
+                        $what,
+                        $crate::error::alternatives(&[$($s),+])
+                    ))),
+                }
+            }
+
+            /// Name as on the command line.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($t::$v => $s,)+
+                }
+            }
+        }
+    };
+}
+
 pub mod cluster;
 pub mod error;
 pub mod geom;

@@ -33,11 +33,11 @@ pub struct Args {
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
     #[arg(long)]
     pub brute: bool,
-    /// Boxes the traversal tests: `tight` (every node's box shrunk to what lies below it, and
-    /// the triangles attached to an inner node behind a box of their own) or `cluster` (the
+    /// Boxes the traversal tests: tight (every node's box shrunk to what lies below it, and
+    /// the triangles attached to an inner node behind a box of their own) or cluster (the
     /// strategy's own boxes, e.g. the k-d cells of kdt/obt, and a node's triangles tested
     /// whenever it is visited). Same nodes, triangles and results either way.
-    #[arg(long, default_value = "tight", value_parser = ["tight", "cluster"])]
+    #[arg(long, default_value = "tight")]
     pub boxes: String,
     /// Also write the triangles and segments to FILE, for casting the same segments with
     /// another program (little-endian: u32 triangle count, 9 f32 per triangle in scene order,
@@ -103,8 +103,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         return Err(hirad::Error::Config("--pairs must be at least 1".into()).into());
     }
     let repeat = args.repeat.max(1);
-    let boxes = Boxes::parse(&args.boxes)
-        .ok_or_else(|| hirad::Error::Config(format!("unknown --boxes {}", args.boxes)))?;
+    let boxes = Boxes::parse(&args.boxes)?;
     let scene = super::load_scene(&args.scene, &SceneOptions::default())?;
     let t0 = Instant::now();
     let segs = sample::sample_segments(&scene, args.pairs, args.seed);

@@ -60,42 +60,6 @@ pub enum ClusterEmission {
     Directional,
 }
 
-/// `parse` (case-insensitive) and `name` of a command-line choice, from one table of names;
-/// the error lists the names ("unknown refinement oracle 'x' (bf or error)").
-macro_rules! choice {
-    ($t:ident, $what:literal, $($v:ident => $s:literal),+ $(,)?) => {
-        impl $t {
-            /// Parse the name given on the command line (any case).
-            pub fn parse(s: &str) -> Result<$t> {
-                match s.to_ascii_lowercase().as_str() {
-                    $($s => Ok($t::$v),)+
-                    _ => Err(Error::Config(format!(
-                        "unknown {} '{s}' ({})",
-                        $what,
-                        alternatives(&[$($s),+])
-                    ))),
-                }
-            }
-
-            /// Name as on the command line.
-            pub fn name(self) -> &'static str {
-                match self {
-                    $($t::$v => $s,)+
-                }
-            }
-        }
-    };
-}
-
-/// `a`, `a or b`, `a, b or c`.
-fn alternatives(names: &[&str]) -> String {
-    match names.split_last() {
-        Some((last, [])) => last.to_string(),
-        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
-        None => String::new(),
-    }
-}
-
 choice!(Oracle, "refinement oracle", Bf => "bf", Error => "error");
 choice!(VisibilityMode, "visibility mode", Rays => "rays", Volume => "volume", None => "none");
 choice!(Reception, "cluster reception", Oriented => "oriented", Isotropic => "isotropic");
@@ -311,6 +275,6 @@ mod tests {
             .contains("unknown visibility mode 'x' (rays, volume or none)"));
         assert!(msg(Oracle::parse("y").unwrap_err())
             .contains("unknown refinement oracle 'y' (bf or error)"));
-        assert_eq!(alternatives(&["a"]), "a");
+        assert_eq!(crate::error::alternatives(&["a"]), "a");
     }
 }

@@ -95,8 +95,18 @@ pub(super) struct Group {
 }
 
 impl Group {
+    /// Split the hit mask `all` of this group for occlusion: the lanes to push, and the
+    /// node's own run `(first packet, count)` when `all` hits its lane and the run is tested
+    /// at once ([`Group::eager`]).
+    #[inline(always)]
+    pub(super) fn split_eager(&self, all: u32) -> (u32, Option<(usize, usize)>) {
+        let eager = self.eager as u32;
+        let run = (all & eager != 0).then_some((self.tri_start as usize, self.num_tris as usize));
+        (all & !eager, run)
+    }
+
     /// Put `b` and reference `r` in `lane`.
-    fn set_lane(&mut self, lane: usize, b: &Aabb, r: u32) {
+    pub(super) fn set_lane(&mut self, lane: usize, b: &Aabb, r: u32) {
         for a in 0..3 {
             self.b[a][lane] = b.min[a];
             self.b[a + 3][lane] = b.max[a];
@@ -133,7 +143,8 @@ impl Default for Group {
 /// by measurement (`raybench`, 1 thread, kdt/obt/okdt on office, graz_office, soup,
 /// copper_beech, bathroom): 0 (every run at once) is best on the two offices and worst on
 /// copper_beech (kdt 0.27 of sah against 0.43), ∞ (none) the reverse (graz kdt 0.44 against
-/// 0.53); 0.003 is within 0.03 of the better of the two everywhere.
+/// 0.53); 0.003 is within 0.05 of the better of the two everywhere (copper_beech obt and okdt
+/// 0.51 and 0.54 against 0.56 and 0.59 with every run at once; elsewhere within 0.03).
 const EAGER_HITS_PER_TEST: f64 = 0.003;
 
 /// Which boxes the traversal tests (`raybench --boxes`).
@@ -149,27 +160,17 @@ pub enum Boxes {
     #[default]
     Tight,
     /// The strategy's own boxes (grown to contain their contents exactly), and the triangles
-    /// of a node tested whenever the node is visited: the traversal the paper describes.
+    /// of a node tested whenever the node is visited: the traversal the paper describes (the
+    /// face bits of [`face_bits`] apply to either kind of boxes).
     Cluster,
 }
 
 impl Boxes {
-    /// Every choice, in the order of the help text.
+    /// Every choice.
     pub const ALL: [Boxes; 2] = [Boxes::Tight, Boxes::Cluster];
-
-    /// Command-line name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Boxes::Tight => "tight",
-            Boxes::Cluster => "cluster",
-        }
-    }
-
-    /// Parse a command-line name.
-    pub fn parse(s: &str) -> Option<Boxes> {
-        Self::ALL.into_iter().find(|b| b.name() == s)
-    }
 }
+
+choice!(Boxes, "traversal boxes", Tight => "tight", Cluster => "cluster");
 
 /// The laid-out tree.
 #[derive(Clone, Debug, Default)]
@@ -800,7 +801,7 @@ impl Ray4 {
         tmax: f32,
     ) -> (u32, [u32; 4]) {
         let (all, tn) = self.test(g, faces, tmin, tmax);
-        let mask = all & !(g.eager as u32);
+        let mask = g.split_eager(all).0;
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::*;

@@ -250,10 +250,10 @@ impl Lane {
         let (mut ts, mut nt, g0, ng) = l.node(n);
         for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
             let (all, rank) = self.r4.test_ranked(g, f, self.tmin, self.tmax);
-            if all & g.eager as u32 != 0 {
-                (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+            let (mask, run) = g.split_eager(all);
+            if let Some(run) = run {
+                (ts, nt) = run;
             }
-            let mask = all & !(g.eager as u32);
             let len = self.len as usize;
             if len + 4 > LANE_STACK {
                 if mask == 0 {
@@ -580,10 +580,10 @@ impl<'a> RayCaster<'a> {
                     stats.boxes += g.lanes as u64;
                 }
                 let (all, tn) = r4.test(g, f, tmin, tmax);
-                if all & g.eager as u32 != 0 {
-                    (ts, nt) = (g.tri_start as usize, g.num_tris as usize);
+                let (mask, run) = g.split_eager(all);
+                if let Some(run) = run {
+                    (ts, nt) = run;
                 }
-                let mask = all & !(g.eager as u32);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
             if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {

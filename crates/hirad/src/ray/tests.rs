@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::cluster::{BuildNode, BuildTree, ClusterConfig, Strategy};
+use crate::geom::Aabb;
 use crate::scene::{Material, RawScene, SceneOptions};
 
 fn two_tri_scene() -> Scene {
@@ -38,6 +39,16 @@ fn tri_scene(name: &str, n: usize, corners: impl Fn(usize) -> [Vec3; 3]) -> Scen
         ..Default::default()
     };
     Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// Corners (min, max) of a random box with corners drawn from `grid`.
+fn grid_box(
+    g: &mut crate::rng::SplitMix64,
+    grid: impl Fn(&mut crate::rng::SplitMix64) -> f32,
+) -> (Vec3, Vec3) {
+    let a = Vec3::new(grid(g), grid(g), grid(g));
+    let b = Vec3::new(grid(g), grid(g), grid(g));
+    (a.min(b), a.max(b))
 }
 
 /// Unit right triangles in the plane z = 0, two apart along x.
@@ -334,13 +345,8 @@ fn group_test_equals_scalar_slab() {
         let mut boxes = Vec::new();
         let faces = (g.next_u64() & 0x3F3F3F) as u32;
         for lane in 0..3 {
-            let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let (lo, hi) = (a.min(b), a.max(b));
-            for k in 0..3 {
-                grp.b[k][lane] = lo[k];
-                grp.b[k + 3][lane] = hi[k];
-            }
+            let (lo, hi) = grid_box(&mut g, grid);
+            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
             boxes.push([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]);
         }
         let (mask, tn) = r4.test(&grp, &faces, 0.0, 10.0);
@@ -426,14 +432,8 @@ fn ranked_push_order_equals_sorted_push() {
         let r4 = layout::Ray4::new(&r);
         let mut grp = layout::Group::default();
         for lane in 0..(g.next_u64() % 5) as usize {
-            let a = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let b = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-            let (lo, hi) = (a.min(b), a.max(b));
-            for c in 0..3 {
-                grp.b[c][lane] = lo[c];
-                grp.b[c + 3][lane] = hi[c];
-            }
-            grp.child[lane] = lane as u32;
+            let (lo, hi) = grid_box(&mut g, grid);
+            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
         }
         let (mask, tn) = r4.test(&grp, &0, 0.0, 100.0);
         let (mask2, rank) = r4.test_ranked(&grp, &0, 0.0, 100.0);
