@@ -69,12 +69,19 @@ fn random_scene(seed: u64, n_random: usize, n_quads: usize) -> Scene {
 /// Random tree over the scene's surfaces: surfaces kept at inner nodes, 1..=6 children of
 /// random sizes, tight boxes (which overlap freely).
 fn random_tree(scene: &Scene, seed: u64) -> ClusterTree {
+    random_tree_keeping(scene, seed, 3)
+}
+
+/// [`random_tree`] where a node keeps up to `1/share` of its triangles (all with `share` 1:
+/// long runs at inner nodes).
+fn random_tree_keeping(scene: &Scene, seed: u64, share: u64) -> ClusterTree {
     fn rec(
         b: &mut BuildTree,
         prims: &Prims,
         mut items: Vec<u32>,
         g: &mut SplitMix64,
         depth: u32,
+        share: u64,
     ) -> u32 {
         // Shuffle.
         for i in (1..items.len()).rev() {
@@ -84,7 +91,7 @@ fn random_tree(scene: &Scene, seed: u64) -> ClusterTree {
         let keep = if items.len() <= 3 || depth > 8 {
             items.len()
         } else {
-            (g.next_u64() % (items.len() as u64 / 3 + 1)) as usize
+            (g.next_u64() % (items.len() as u64 / share + 1)) as usize
         };
         let rest = items.split_off(keep);
         let mut children = Vec::new();
@@ -93,7 +100,7 @@ fn random_tree(scene: &Scene, seed: u64) -> ClusterTree {
             let k = 1 + (g.next_u64() % 6) as usize;
             let take = (rest.len() / k).max(1).min(rest.len());
             let part: Vec<u32> = rest.drain(..take).collect();
-            children.push(rec(b, prims, part, g, depth + 1));
+            children.push(rec(b, prims, part, g, depth + 1, share));
         }
         let mut bbox = Aabb::EMPTY;
         for &s in &items {
@@ -113,7 +120,7 @@ fn random_tree(scene: &Scene, seed: u64) -> ClusterTree {
     let mut g = SplitMix64::new(seed);
     let mut b = BuildTree::default();
     let all: Vec<u32> = (0..scene.num_triangles() as u32).collect();
-    b.root = rec(&mut b, &prims, all, &mut g, 0);
+    b.root = rec(&mut b, &prims, all, &mut g, 0, share);
     let t = ClusterTree::from_build(
         b,
         scene.num_triangles(),
@@ -206,6 +213,50 @@ proptest! {
             check_against_brute(&scene, &t, &segs[..100]);
         }
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Nodes holding up to all of their triangles: runs long enough to be split into pieces
+    /// behind boxes of their own with tight boxes.
+    #[test]
+    fn long_inner_runs_match_brute_force(seed in any::<u64>(), n_random in 40usize..400) {
+        let scene = random_scene(seed, n_random, 2);
+        let tree = random_tree_keeping(&scene, seed ^ 0x55, 1);
+        let segs = random_segments(&scene, seed ^ 0xAA, 200);
+        check_against_brute(&scene, &tree, &segs);
+    }
+}
+
+/// Split runs find the same occluders as whole ones (brute force, every kind of boxes) and test
+/// far fewer triangles (measured 69.4 against 447.8 per ray).
+#[test]
+fn split_runs_test_fewer_triangles() {
+    let scene = random_scene(5, 600, 0);
+    let tree = random_tree_keeping(&scene, 6, 1);
+    let long = tree.nodes.iter().filter(|n| n.num_surfaces > 64).count();
+    assert!(long >= 1, "{long}");
+    let segs = random_segments(&scene, 7, 2000);
+    let occ = check_against_brute(&scene, &tree, &segs);
+    assert!(occ > 200 && occ < 1900, "{occ}");
+    let split = occlusion_stats(&scene, &tree, Boxes::Tight, &segs);
+    let whole = occlusion_stats(&scene, &tree, Boxes::Nodes, &segs);
+    assert!(
+        split.tris_per_ray() < 0.25 * whole.tris_per_ray(),
+        "{} {}",
+        split.tris_per_ray(),
+        whole.tris_per_ray()
+    );
+    // Pieces are not nodes of the tree: the nodes visited differ only through the order in
+    // which occluders are found (measured 4,259 against 4,157).
+    let ratio = split.nodes as f64 / whole.nodes as f64;
+    assert!(
+        ratio > 0.9 && ratio < 1.1,
+        "{} {}",
+        split.nodes,
+        whole.nodes
+    );
 }
 
 #[test]

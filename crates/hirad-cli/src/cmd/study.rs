@@ -59,8 +59,9 @@ pub struct Args {
     /// Pairs of the ray-casting test (0 skips it).
     #[arg(long, default_value_t = 100_000)]
     pub pairs: usize,
-    /// Boxes of the ray-casting test: tight (shrunk to their contents) or cluster (the
-    /// strategies' own, as in the paper); see `raybench --boxes`.
+    /// Boxes of the ray-casting test: tight (shrunk to their contents, long runs of a node's
+    /// triangles split), nodes (shrunk, runs whole) or cluster (the strategies' own, as in the
+    /// paper); see `raybench --boxes`.
     #[arg(long, default_value = "tight")]
     pub ray_boxes: String,
     #[arg(long, default_value_t = 1)]

@@ -8,8 +8,8 @@
 //!   references, the node's own triangle run (surfaces attached at inner nodes) and, in the
 //!   first group, its number of groups.
 //! - A leaf is not stored as a node at all: its reference in the parent's group encodes its
-//!   triangle run directly (bit 31 set, 5 bits of count, 26 bits of first packet), so
-//!   reaching a leaf reads only its triangles.
+//!   triangle run directly (bit 31 set, 5 bits of count, a chunk bit, 25 bits of first
+//!   packet), so reaching a leaf reads only its triangles.
 //! - Triangles are stored four to a [`Packet`] (structure of arrays, one SIMD edge test for
 //!   four triangles); each node's run starts a new packet, unused lanes are masked out. Runs of
 //!   [`WIDE_MIN`] triangles or more (surfaces attached at inner nodes of `kdt`, `obt`, `okdt`,
@@ -25,8 +25,16 @@
 //! node's one SIMD test then decides them with its children, and they are tested only when
 //! the ray hits their box (straddling surfaces of a k-d node, a strip of floor); occlusion
 //! tests them at once or visits them in distance order like a leaf ([`EAGER_HITS_PER_TEST`]).
-//! Every lane also carries six face bits ([`face_bits`]) that let a ray lying in the plane of
-//! a face skip it (`Ray4::flat_in_plane`). With
+//! A run longer than [`CHUNK_MAX`] (the hundreds of surfaces a `kdt` node keeps because they
+//! cross its split plane, a large leaf) is split into pieces behind boxes of their own
+//! ([`RunTree`]) when a cost model says it pays: the pieces take the run's lanes, larger
+//! pieces are groups of four smaller ones (marked [`SUB`]: not nodes of the tree, not counted
+//! as nodes visited), and the smallest are chunks of at most 16 triangles (up to 31 where a
+//! further split would not pay) referenced like leaves (with the [`CHUNK`] bit). The pieces
+//! of a run tested at once are visited before the node's other lanes ([`FIRST`]).
+//! [`Boxes::Nodes`] keeps every run whole. Every lane also carries six face bits
+//! ([`face_bits`]) that let a ray lying in the plane of a face skip it
+//! (`Ray4::flat_in_plane`). With
 //! [`Boxes::Cluster`] the boxes are the strategy's boxes grown to contain their contents
 //! exactly (strategies may leave an f32 slack that `validate` tolerates; a ray grazing such
 //! a triangle must still reach it, so that the result equals brute force for any tree), and
@@ -45,15 +53,18 @@ pub(super) const LEAF: u32 = 1 << 31;
 const LEAF_COUNT_SHIFT: u32 = 26;
 /// Largest triangle count of an in-place leaf.
 const LEAF_MAX_TRIS: usize = (1 << (31 - LEAF_COUNT_SHIFT)) - 1;
+/// Flag of an in-place run that is a piece of a node's own triangles ([`CHUNK_MAX`]), not a
+/// leaf of the tree.
+const CHUNK: u32 = 1 << 25;
 /// Largest first packet of an in-place leaf.
-const LEAF_MAX_START: usize = (1 << LEAF_COUNT_SHIFT) - 1;
+const LEAF_MAX_START: usize = CHUNK as usize - 1;
 /// Reference flag of a node's own triangle run behind a box of its own (bit 31 clear): the
 /// low bits are the index of the group holding the run.
 pub(super) const RUN: u32 = 1 << 30;
 /// Reference of an empty lane.
 pub(super) const NONE: u32 = u32::MAX;
 
-/// Decode the triangle run `(first packet, count)` of a leaf reference.
+/// Decode the triangle run `(first packet, count)` of a leaf (or chunk) reference.
 #[inline(always)]
 pub(super) fn leaf_run(r: u32) -> (usize, usize) {
     (
@@ -88,7 +99,9 @@ pub(super) struct Group {
     /// Number of non-empty lanes in this group (the run's lane included).
     pub lanes: u8,
     /// Bit of the run's lane when occlusion queries test the run as soon as that lane is hit
-    /// ([`EAGER_HITS_PER_TEST`]) instead of pushing its reference.
+    /// ([`EAGER_HITS_PER_TEST`]) instead of pushing its reference; bits 4–7: lanes holding
+    /// pieces of such a run split into a [`RunTree`], which occlusion queries visit before the
+    /// other lanes hit ([`FIRST`] shifted by the lane).
     pub eager: u8,
     /// Bit of the lane holding the box of the node's own triangle run (0: none in this group).
     pub run: u16,
@@ -100,9 +113,19 @@ impl Group {
     /// at once ([`Group::eager`]).
     #[inline(always)]
     pub(super) fn split_eager(&self, all: u32) -> (u32, Option<(usize, usize)>) {
-        let eager = self.eager as u32;
+        let eager = (self.eager & 0xF) as u32;
         let run = (all & eager != 0).then_some((self.tri_start as usize, self.num_tris as usize));
         (all & !eager, run)
+    }
+
+    /// Rank the pieces visited first ([`FIRST`]) nearest: entry distance `-f32::MAX`.
+    #[inline(always)]
+    pub(super) fn rank_first(&self, tn: &mut [f32; 4]) {
+        let mut m = self.eager >> 4;
+        while m != 0 {
+            tn[m.trailing_zeros() as usize] = -f32::MAX;
+            m &= m - 1;
+        }
     }
 
     /// Put `b` and reference `r` in `lane`.
@@ -147,30 +170,247 @@ impl Default for Group {
 /// 0.51 and 0.54 against 0.56 and 0.59 with every run at once; elsewhere within 0.03).
 const EAGER_HITS_PER_TEST: f64 = 0.003;
 
+/// With tight boxes, a node's own run longer than this is split into pieces of nearby
+/// triangles ([`RunTree`]); pieces of at most this many are tested like a leaf.
+pub(super) const CHUNK_MAX: usize = 16;
+
+/// Bit of [`Group::eager`] (shifted by the lane) of a piece visited first.
+pub(super) const FIRST: u8 = 1 << 4;
+
+/// Bit of [`Group::run`] marking a group that holds pieces of a node's own run ([`RunTree`])
+/// rather than a node of the tree.
+pub(super) const SUB: u16 = 1 << 15;
+
+/// A piece of a node's own run: a range of the (reordered) run, a chunk tested like a leaf
+/// (at most [`LEAF_MAX_TRIS`] triangles) or a group of up to four smaller pieces.
+#[derive(Clone, Debug)]
+struct Piece {
+    range: std::ops::Range<usize>,
+    /// Index in [`RunTree::subs`] of the pieces it is split into (`None`: a chunk).
+    sub: Option<usize>,
+    /// Surface area of its box.
+    sa: f64,
+    /// Expected cost of visiting it once its box is hit ([`test_cost`] units).
+    cost: f64,
+    /// Reference (set when the layout is allocated).
+    r: u32,
+}
+
+/// The own triangles of a node split for traversal with tight boxes: the pieces that take the
+/// free lanes of the node's last group and, behind them, groups of up to four pieces each,
+/// down to chunks of at most [`CHUNK_MAX`] nearby triangles (or up to [`LEAF_MAX_TRIS`]
+/// where splitting further would not pay for the steps). Only the boxes change: every
+/// triangle is still reached through (and only through) the node it is attached to.
+#[derive(Clone, Debug, Default)]
+struct RunTree {
+    top: Vec<Piece>,
+    subs: Vec<Vec<Piece>>,
+}
+
+impl RunTree {
+    /// Reorder `ids` into pieces, `fanout` of them at the top.
+    fn new(scene: &Scene, ids: &mut [u32], fanout: usize) -> RunTree {
+        let mut t = RunTree::default();
+        t.top = t.pieces(scene, ids, 0..ids.len(), fanout);
+        t
+    }
+
+    /// Expected cost of visiting `pieces` once their parent (of surface area `sa`) is hit:
+    /// a piece is hit with probability (its surface area) / `sa`, and each hit costs a step
+    /// and its own cost.
+    fn cost(pieces: &[Piece], sa: f64) -> f64 {
+        pieces
+            .iter()
+            .map(|p| (p.sa / sa).min(1.0) * (STEP_COST + p.cost))
+            .sum()
+    }
+
+    /// Whether splitting pays: the expected cost of the pieces against testing the whole run
+    /// when its box is hit (`pushed`: after a step of its own).
+    fn pays(&self, scene: &Scene, ids: &[u32], pushed: bool) -> bool {
+        let sa = run_box(scene, ids).surface_area() as f64;
+        let whole = test_cost(ids.len()) + if pushed { STEP_COST } else { 0.0 };
+        sa > 0.0 && RunTree::cost(&self.top, sa) < whole
+    }
+
+    fn pieces(
+        &mut self,
+        scene: &Scene,
+        ids: &mut [u32],
+        range: std::ops::Range<usize>,
+        fanout: usize,
+    ) -> Vec<Piece> {
+        let k = fanout.min(range.len().div_ceil(CHUNK_MAX));
+        let mut ranges = Vec::with_capacity(k);
+        split_into(scene, ids, range, k, &mut ranges);
+        ranges
+            .into_iter()
+            .map(|range| {
+                let sa = run_box(scene, &ids[range.clone()]).surface_area() as f64;
+                let mut sub = None;
+                if range.len() > CHUNK_MAX {
+                    // Split further unless a chunk reference can hold the piece and its
+                    // pieces would not pay for their steps.
+                    let mut t = RunTree::default();
+                    let top = t.pieces(scene, ids, range.clone(), 4);
+                    let split = RunTree::cost(&top, sa);
+                    if range.len() > LEAF_MAX_TRIS || (sa > 0.0 && split < test_cost(range.len())) {
+                        let j = self.subs.len();
+                        let shift = |mut v: Vec<Piece>| {
+                            v.iter_mut().for_each(|p| p.sub = p.sub.map(|s| s + j + 1));
+                            v
+                        };
+                        self.subs.push(shift(top));
+                        self.subs.extend(t.subs.into_iter().map(shift));
+                        sub = Some((j, split));
+                    }
+                }
+                Piece {
+                    cost: sub.map_or(test_cost(range.len()), |s| s.1),
+                    sub: sub.map(|s| s.0),
+                    range,
+                    sa,
+                    r: NONE,
+                }
+            })
+            .collect()
+    }
+}
+
+/// Cost of visiting a piece of a split run (a step of the traversal and its box test), in
+/// sixteen-wide packet tests ([`test_cost`]). Set by measurement (`raybench`, 1 thread,
+/// kdt/obt/okdt/tf-oct on office, soup, bathroom, graz_office, copper_beech; 0, 0.5, 1, 1.5,
+/// 2, 3 and 5): from 3 up, fewer runs are split and kdt falls back towards the unsplit rates
+/// (graz_office 0.53, soup 0.27 of sah); 0 to 1.5 are within the noise of each other.
+const STEP_COST: f64 = 1.0;
+
+/// Cost of testing a run of `n` triangles, in sixteen-wide packet tests.
+fn test_cost(n: usize) -> f64 {
+    if n >= WIDE_MIN {
+        n.div_ceil(16) as f64
+    } else {
+        0.5 * n.div_ceil(4) as f64
+    }
+}
+
+/// Box of the triangles `ids`.
+fn run_box(scene: &Scene, ids: &[u32]) -> Aabb {
+    ids.iter().fold(Aabb::EMPTY, |mut b, &s| {
+        b.grow_box(&scene.tri_bbox(s as usize));
+        b
+    })
+}
+
+/// Split `ids[range]` into `k` ranges of nearby triangles, appended to `out`: cut at the
+/// proportional rank of the triangles' box centres along the longest axis of their spread,
+/// recursively. Ties are broken by triangle id, so the result does not depend on the input
+/// order.
+fn split_into(
+    scene: &Scene,
+    ids: &mut [u32],
+    range: std::ops::Range<usize>,
+    k: usize,
+    out: &mut Vec<std::ops::Range<usize>>,
+) {
+    if k <= 1 {
+        out.push(range);
+        return;
+    }
+    let part = &mut ids[range.clone()];
+    let n = part.len();
+    let k1 = k / 2;
+    let boxes: Vec<Aabb> = part.iter().map(|&s| scene.tri_bbox(s as usize)).collect();
+    // Positions in `part` sorted along axis `a` by box centre, ties by triangle id.
+    let order = |a: usize| {
+        let mut o: Vec<u32> = (0..n as u32).collect();
+        let key = |i: u32| boxes[i as usize].min[a] + boxes[i as usize].max[a];
+        o.sort_unstable_by(|&x, &y| {
+            key(x)
+                .total_cmp(&key(y))
+                .then(part[x as usize].cmp(&part[y as usize]))
+        });
+        o
+    };
+    // Cut where the two sides' surface areas times their triangle counts are least (each side
+    // keeps at least one triangle per range it is split into), over the three axes.
+    let mut best = (f64::INFINITY, 0, 0);
+    let mut right = vec![0f64; n + 1];
+    for a in 0..3 {
+        let sorted = order(a);
+        let mut b = Aabb::EMPTY;
+        for i in (0..n).rev() {
+            b.grow_box(&boxes[sorted[i] as usize]);
+            right[i] = b.surface_area() as f64;
+        }
+        let mut b = Aabb::EMPTY;
+        for i in 1..n {
+            b.grow_box(&boxes[sorted[i - 1] as usize]);
+            if i < k1 || n - i < k - k1 {
+                continue;
+            }
+            let c = b.surface_area() as f64 * i as f64 + right[i] * (n - i) as f64;
+            if c < best.0 {
+                best = (c, a, i);
+            }
+        }
+    }
+    let (_, a, mid) = best;
+    let mid = mid.max(k1);
+    let sorted: Vec<u32> = order(a).iter().map(|&i| part[i as usize]).collect();
+    part.copy_from_slice(&sorted);
+    let mid = range.start + mid;
+    split_into(scene, ids, range.start..mid, k1, out);
+    split_into(scene, ids, mid..range.end, k - k1, out);
+}
+
+/// Whether occlusion queries test the run `ids` as soon as its box is hit
+/// ([`EAGER_HITS_PER_TEST`]): the expected number of its triangles crossed by a random line
+/// through its box, 2·(triangle area) / (box surface area), per triangle.
+fn eager_run(scene: &Scene, ids: &[u32]) -> bool {
+    let mut b = Aabb::EMPTY;
+    let mut area = 0.0;
+    for &t in ids {
+        let [p, q, r] = scene.tri_vertices(t as usize);
+        area += crate::geom::triangle_area_f64(p, q, r);
+        b.grow_box(&scene.tri_bbox(t as usize));
+    }
+    let sa = b.surface_area() as f64;
+    let crossed = if sa > 0.0 { 2.0 * area / sa } else { 1.0 };
+    crossed >= EAGER_HITS_PER_TEST * ids.len() as f64
+}
+
 /// Which boxes the traversal tests (`raybench --boxes`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Boxes {
+    /// As [`Boxes::Nodes`], and a node's own run longer than [`CHUNK_MAX`] triangles is
+    /// split into pieces of nearby triangles behind boxes of their own ([`RunTree`]: cut
+    /// by the surface area heuristic, down to chunks of at most 16), where a cost model says
+    /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
+    /// run would have taken, so every triangle is still reached through, and only through,
+    /// the node it is attached to; a ray tests only the pieces whose boxes it hits (the many
+    /// surfaces a `kdt` node keeps because they cross its split plane, a large leaf).
+    #[default]
+    Tight,
     /// Every node's box shrunk to what lies below it (the union of its own triangles' boxes
     /// and its children's boxes), and the triangles attached to an inner node bounded by a
     /// box of their own in a free lane of the node's last group, so that they are tested
     /// only when the ray hits that box. Same nodes, children and triangles as the tree: only
     /// the boxes are tighter. Differs from [`Boxes::Cluster`] only where the strategy's boxes
     /// are loose (`kdt` and `obt` cells) and at inner nodes with triangles of their own.
-    #[default]
-    Tight,
+    Nodes,
     /// The strategy's own boxes (grown to contain their contents exactly), and the triangles
     /// of a node tested whenever the node is visited: the traversal the paper describes (the
-    /// face bits of [`face_bits`] apply to either kind of boxes).
+    /// face bits of [`face_bits`] apply to every kind of boxes).
     Cluster,
 }
 
 impl Boxes {
     /// Every choice.
-    pub const ALL: [Boxes; 2] = [Boxes::Tight, Boxes::Cluster];
+    pub const ALL: [Boxes; 3] = [Boxes::Tight, Boxes::Nodes, Boxes::Cluster];
 }
 
-choice!(Boxes, "traversal boxes", Tight => "tight", Cluster => "cluster");
+choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster => "cluster");
 
 /// The laid-out tree.
 #[derive(Clone, Debug, Default)]
@@ -290,25 +530,71 @@ impl Layout {
             k.reverse();
             stack.extend(k);
         }
+        // Each node's own triangles; with tight boxes, a run longer than CHUNK_MAX (that is not
+        // a leaf's run held in place) is reordered into pieces behind boxes of their own.
+        let mut own: Vec<Vec<u32>> = (0..n as u32).map(|id| surfs(id).collect()).collect();
+        let mut runs: Vec<Option<RunTree>> = vec![None; n];
+        if boxes == Boxes::Tight {
+            use rayon::prelude::*;
+            own.par_iter_mut()
+                .zip(&mut runs)
+                .enumerate()
+                .for_each(|(id, (ids, run))| {
+                    let c = kids(id as u32).count();
+                    if ids.len() > CHUNK_MAX && (c > 0 || ids.len() > LEAF_MAX_TRIS) {
+                        let free = 4 - c % 4;
+                        let mut split = ids.clone();
+                        let rt = RunTree::new(scene, &mut split, free);
+                        let pushed = c % 4 != 0 && !eager_run(scene, ids);
+                        if rt.pays(scene, &split, pushed) {
+                            *ids = split;
+                            *run = Some(rt);
+                        }
+                    }
+                });
+        }
         // Pass 1: references, group and triangle positions.
         let mut refs = vec![NONE; n];
         let mut tri_pos = vec![0usize; n];
-        let (mut ng, mut npk, mut nw) = (0usize, 0usize, 0usize);
+        let mut sub_pos = vec![0usize; n];
+        let mut ng = 0usize;
+        // Packets and wide packets allocated so far.
+        let mut np = [0usize; 2];
+        // First packet of a run of `t` triangles, in the array its length selects.
+        let alloc = |np: &mut [usize; 2], t: usize| {
+            let (k, size) = if t >= WIDE_MIN { (1, 16) } else { (0, 4) };
+            let start = np[k];
+            np[k] += t.div_ceil(size);
+            start
+        };
         for &id in &order {
+            let i = id as usize;
             let c = kids(id).count();
-            let t = surfs(id).count();
-            let pos = if t >= WIDE_MIN { &mut nw } else { &mut npk };
-            let start = *pos;
-            tri_pos[id as usize] = start;
-            *pos += if t >= WIDE_MIN {
-                t.div_ceil(16)
-            } else {
-                t.div_ceil(4)
-            };
+            let t = own[i].len();
+            // Every chunk starts at most `t` packets further on, every group below RUN.
+            let fits = np[0].max(np[1]) + t <= LEAF_MAX_START && ng + 2 * t < RUN as usize;
+            if let Some(rt) = runs[i].as_mut().filter(|_| fits) {
+                refs[i] = ng as u32;
+                ng += (c + rt.top.len()).div_ceil(4);
+                sub_pos[i] = ng;
+                ng += rt.subs.len();
+                let mut set = |p: &mut Piece| {
+                    p.r = match p.sub {
+                        Some(j) => (sub_pos[i] + j) as u32,
+                        None => leaf_ref(alloc(&mut np, p.range.len()), p.range.len()) | CHUNK,
+                    }
+                };
+                rt.top.iter_mut().for_each(&mut set);
+                rt.subs.iter_mut().flatten().for_each(&mut set);
+                continue;
+            }
+            runs[i] = None;
+            let start = alloc(&mut np, t);
+            tri_pos[i] = start;
             if c == 0 && t <= LEAF_MAX_TRIS && start <= LEAF_MAX_START {
-                refs[id as usize] = leaf_ref(start, t);
+                refs[i] = leaf_ref(start, t);
             } else {
-                refs[id as usize] = ng as u32;
+                refs[i] = ng as u32;
                 ng += c.div_ceil(4).max(1);
             }
         }
@@ -325,7 +611,7 @@ impl Layout {
             }
             run_bound[id as usize] = rb;
             let mut b = match boxes {
-                Boxes::Tight => rb,
+                Boxes::Tight | Boxes::Nodes => rb,
                 Boxes::Cluster => {
                     let mut b = tree.nodes[id as usize].bbox;
                     b.grow_box(&rb);
@@ -353,6 +639,7 @@ impl Layout {
             v: [[0.0; 4]; 9],
             id: [u32::MAX; 4],
         };
+        let [npk, nw] = np;
         let mut packets = vec![empty; npk];
         let mut wide = vec![
             Wide {
@@ -362,58 +649,95 @@ impl Layout {
             nw
         ];
         for &id in &order {
-            let r = refs[id as usize];
+            let i = id as usize;
+            let r = refs[i];
+            let ids = &own[i];
             if r & LEAF == 0 {
                 let g0 = r as usize;
                 let k: Vec<u32> = kids(id).collect();
-                let num_groups = k.len().div_ceil(4).max(1);
-                for (i, &c) in k.iter().enumerate() {
-                    let g = &mut groups[g0 + i / 4];
-                    g.set_lane(i % 4, &bound[c as usize], refs[c as usize]);
-                    faces[g0 + i / 4] |= (node_faces[c as usize] as u32) << (8 * (i % 4));
+                let children = k
+                    .iter()
+                    .map(|&c| (bound[c as usize], refs[c as usize], node_faces[c as usize]));
+                // The box, reference and face bits of a piece of the node's own run.
+                let lane_of = |p: &Piece| {
+                    let tris = || {
+                        ids[p.range.clone()]
+                            .iter()
+                            .map(|&s| scene.tri_bbox(s as usize))
+                            .map(|t| (t, flat_bits(&t)))
+                    };
+                    let b = tris().fold(Aabb::EMPTY, |mut b, (t, _)| {
+                        b.grow_box(&t);
+                        b
+                    });
+                    (b, p.r, face_bits(&b, tris()))
+                };
+                let rt = runs[i].as_ref();
+                let top = rt.into_iter().flat_map(|rt| rt.top.iter().map(lane_of));
+                let first = rt.is_some() && eager_run(scene, ids);
+                let mut lanes = 0usize;
+                for (j, (b, cr, f)) in children.chain(top).enumerate() {
+                    let g = &mut groups[g0 + j / 4];
+                    g.set_lane(j % 4, &b, cr);
+                    if first && j >= k.len() {
+                        g.eager |= FIRST << (j % 4);
+                    }
+                    faces[g0 + j / 4] |= (f as u32) << (8 * (j % 4));
+                    lanes += 1;
                 }
-                let nt = surfs(id).count();
+                for (j, sub) in rt.iter().flat_map(|rt| rt.subs.iter().enumerate()) {
+                    let at = sub_pos[i] + j;
+                    for (lane, p) in sub.iter().enumerate() {
+                        let (b, cr, f) = lane_of(p);
+                        groups[at].set_lane(lane, &b, cr);
+                        faces[at] |= (f as u32) << (8 * lane);
+                    }
+                    groups[at].num_groups = 1;
+                    groups[at].run = SUB;
+                }
+                let num_groups = lanes.div_ceil(4).max(1);
+                let nt = if runs[i].is_some() { 0 } else { ids.len() };
                 // The run gets a lane of its own when the last group has one free (a node
                 // without children has no box to spare: its run is its box).
-                let run_lane = boxes == Boxes::Tight
+                let run_lane = boxes != Boxes::Cluster
                     && nt > 0
                     && !k.len().is_multiple_of(4)
                     && ng < RUN as usize;
                 let at = if run_lane { g0 + num_groups - 1 } else { g0 };
                 let g = &mut groups[at];
-                g.tri_start = tri_pos[id as usize] as u32;
+                g.tri_start = tri_pos[i] as u32;
                 g.num_tris = nt as u32;
                 if run_lane {
                     let lane = k.len() % 4;
-                    g.set_lane(lane, &run_bound[id as usize], RUN | at as u32);
-                    faces[at] |= (run_faces[id as usize] as u32) << (8 * lane);
+                    g.set_lane(lane, &run_bound[i], RUN | at as u32);
+                    faces[at] |= (run_faces[i] as u32) << (8 * lane);
                     g.run = 1 << lane;
-                    // Expected number of the run's triangles crossed by a random line
-                    // through its box: 2·(triangle area) / (box surface area).
-                    let area: f64 = surfs(id)
-                        .map(|t| {
-                            let [a, b, c] = scene.tri_vertices(t as usize);
-                            crate::geom::triangle_area_f64(a, b, c)
-                        })
-                        .sum();
-                    let sa = run_bound[id as usize].surface_area() as f64;
-                    let crossed = if sa > 0.0 { 2.0 * area / sa } else { 1.0 };
-                    if crossed >= EAGER_HITS_PER_TEST * nt as f64 {
+                    if eager_run(scene, ids) {
                         g.eager = 1 << lane;
                     }
                 }
                 groups[g0].num_groups = num_groups as u32;
             }
-            let long = surfs(id).count() >= WIDE_MIN;
-            for (i, s) in surfs(id).enumerate() {
-                let tv = scene.tri_vertices(s as usize);
-                let at = tri_pos[id as usize];
-                if long {
-                    let w = &mut wide[at + i / 16];
-                    put(&mut w.v, &mut w.id, i % 16, tv, s);
-                } else {
-                    let p = &mut packets[at + i / 4];
-                    put(&mut p.v, &mut p.id, i % 4, tv, s);
+            let mut store = |ids: &[u32], at: usize| {
+                for (i, &s) in ids.iter().enumerate() {
+                    let tv = scene.tri_vertices(s as usize);
+                    if ids.len() >= WIDE_MIN {
+                        let w = &mut wide[at + i / 16];
+                        put(&mut w.v, &mut w.id, i % 16, tv, s);
+                    } else {
+                        let p = &mut packets[at + i / 4];
+                        put(&mut p.v, &mut p.id, i % 4, tv, s);
+                    }
+                }
+            };
+            match &runs[i] {
+                None => store(ids, tri_pos[i]),
+                Some(rt) => {
+                    for p in rt.top.iter().chain(rt.subs.iter().flatten()) {
+                        if p.sub.is_none() {
+                            store(&ids[p.range.clone()], leaf_run(p.r).0);
+                        }
+                    }
                 }
             }
         }
@@ -534,8 +858,12 @@ impl Layout {
     /// Whether visiting reference `r` visits a node of the tree (a node's own run behind its
     /// box does not: its node was visited when the box was tested).
     #[inline(always)]
-    pub(super) fn is_node(r: u32) -> bool {
-        r & (LEAF | RUN) != RUN
+    pub(super) fn is_node(&self, r: u32) -> bool {
+        if r & LEAF != 0 {
+            r & CHUNK == 0
+        } else {
+            r & RUN == 0 && self.groups[r as usize].run & SUB == 0
+        }
     }
 
     /// Hint the cache to load what visiting `r` reads first.
@@ -808,15 +1136,24 @@ impl Ray4 {
             // SAFETY: SSE2 is part of the x86_64 baseline.
             #[allow(unused_unsafe)]
             unsafe {
-                let hit = _mm_castsi128_ps(_mm_cmpeq_epi32(
-                    _mm_and_si128(_mm_set1_epi32(mask as i32), _mm_setr_epi32(1, 2, 4, 8)),
-                    _mm_setr_epi32(1, 2, 4, 8),
-                ));
-                let t = _mm_blendv_ps_sse2(
-                    _mm_set1_ps(f32::NEG_INFINITY),
-                    _mm_loadu_ps(tn.as_ptr()),
-                    hit,
-                );
+                let bits = _mm_setr_epi32(1, 2, 4, 8);
+                let lanes = |m: u32| {
+                    _mm_castsi128_ps(_mm_cmpeq_epi32(
+                        _mm_and_si128(_mm_set1_epi32(m as i32), bits),
+                        bits,
+                    ))
+                };
+                let hit = lanes(mask);
+                // Pieces visited first rank nearest of the lanes hit.
+                let mut tn = _mm_loadu_ps(tn.as_ptr());
+                if g.eager >= FIRST {
+                    tn = _mm_blendv_ps_sse2(
+                        tn,
+                        _mm_set1_ps(-f32::MAX),
+                        lanes((g.eager >> 4) as u32),
+                    );
+                }
+                let t = _mm_blendv_ps_sse2(_mm_set1_ps(f32::NEG_INFINITY), tn, hit);
                 // Rotation k compares lane i with lane (i + k) mod 4, which is a higher lane
                 // exactly for i < 4 - k.
                 let r1 = _mm_shuffle_ps::<0b00_11_10_01>(t, t);
@@ -847,7 +1184,11 @@ impl Ray4 {
         {
             let t: [f32; 4] = std::array::from_fn(|i| {
                 if mask >> i & 1 == 1 {
-                    tn[i]
+                    if g.eager >> (4 + i) & 1 == 1 {
+                        -f32::MAX
+                    } else {
+                        tn[i]
+                    }
                 } else {
                     f32::NEG_INFINITY
                 }

@@ -572,18 +572,19 @@ impl<'a> RayCaster<'a> {
         stack.push(root);
         while let Some(n) = stack.pop() {
             if STATS {
-                stats.nodes += Layout::is_node(n) as u64;
+                stats.nodes += l.is_node(n) as u64;
             }
             let (mut ts, mut nt, g0, ng) = l.node(n);
             for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                 if STATS {
                     stats.boxes += g.lanes as u64;
                 }
-                let (all, tn) = r4.test(g, f, tmin, tmax);
+                let (all, mut tn) = r4.test(g, f, tmin, tmax);
                 let (mask, run) = g.split_eager(all);
                 if let Some(run) = run {
                     (ts, nt) = run;
                 }
+                g.rank_first(&mut tn);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
             if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
@@ -623,7 +624,7 @@ impl<'a> RayCaster<'a> {
             }
             let (ts, nt, g0, ng) = l.node(e.node);
             if STATS {
-                stats.nodes += Layout::is_node(e.node) as u64;
+                stats.nodes += l.is_node(e.node) as u64;
                 stats.tris += nt as u64;
             }
             if nt > 0 {

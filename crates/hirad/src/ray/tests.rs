@@ -120,7 +120,7 @@ fn layout_is_depth_first_with_inner_surfaces() {
         assert_eq!(l.groups.len(), 1);
         let g = &l.groups[0];
         let (lanes, run) = match boxes {
-            Boxes::Tight => (2, 0b10),
+            Boxes::Tight | Boxes::Nodes => (2, 0b10),
             Boxes::Cluster => (1, 0),
         };
         assert_eq!(
@@ -142,11 +142,11 @@ fn layout_is_depth_first_with_inner_surfaces() {
         assert_eq!(layout::leaf_run(leaf), (1, 1));
         let lane1 = match boxes {
             // The run's reference: the group holding it.
-            Boxes::Tight => layout::RUN,
+            Boxes::Tight | Boxes::Nodes => layout::RUN,
             Boxes::Cluster => layout::NONE,
         };
         assert_eq!(g.child[1..], [lane1, layout::NONE, layout::NONE]);
-        if boxes == Boxes::Tight {
+        if boxes != Boxes::Cluster {
             // Visiting the run's reference tests the root's triangle; visiting the root does
             // not.
             assert_eq!(l.node(layout::RUN), (0, 1, 0, 0));
@@ -158,7 +158,7 @@ fn layout_is_depth_first_with_inner_surfaces() {
         assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
         assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
         let lane1 = [1, 4].map(|a| g.b[a][1]);
-        if boxes == Boxes::Tight {
+        if boxes != Boxes::Cluster {
             // Triangle 1's box: (0, 0, 1)–(2, 2, 1).
             assert_eq!(lane1, [0.0, 2.0]);
             assert_eq!([g.b[2][1], g.b[5][1]], [1.0, 1.0]);
@@ -177,7 +177,8 @@ fn a_sparse_run_is_visited_in_distance_order() {
     // one: the run's reference is pushed, not tested at once.
     let s = row_of_triangles("row", 100);
     let t = root_and_leaf(&s, (0..99).collect(), 99);
-    let rc = RayCaster::new(&s, &t);
+    // The run kept whole (tight boxes split it: `a_long_run_is_split_into_pieces`).
+    let rc = RayCaster::with_boxes(&s, &t, Boxes::Nodes);
     let g = &rc.layout.groups[0];
     assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
     // Down onto the leaf's triangle: the leaf is visited, the run's box (x ≤ 197) is missed.
@@ -200,6 +201,70 @@ fn a_sparse_run_is_visited_in_distance_order() {
     });
     rc.occluded_stream(&segs, &mut out);
     assert_eq!(out, [true, false]);
+}
+
+#[test]
+fn a_long_run_is_split_into_pieces() {
+    // The root of `a_sparse_run_is_visited_in_distance_order` (99 triangles in a row and a
+    // leaf child): with tight boxes its run is split into pieces that fill the three free lanes
+    // of its group, groups of pieces below them, and chunks of at most 16 triangles.
+    let s = row_of_triangles("row", 100);
+    let t = root_and_leaf(&s, (0..99).collect(), 99);
+    let rc = RayCaster::new(&s, &t);
+    let l = &rc.layout;
+    let g = &l.groups[0];
+    assert_eq!((g.lanes, g.num_tris, g.run, g.num_groups), (4, 0, 0, 1));
+    let subs = l.groups.iter().filter(|g| g.run & layout::SUB != 0).count();
+    assert!(subs >= 3, "{subs}");
+    // Every triangle is stored once, in chunks of at most 16 nearby triangles.
+    let mut chunks = Vec::new();
+    for g in &l.groups {
+        for &r in g
+            .child
+            .iter()
+            .filter(|&&r| r != layout::NONE && r & layout::LEAF != 0)
+        {
+            let (ps, n) = layout::leaf_run(r);
+            let ids: Vec<u32> = if n >= layout::WIDE_MIN {
+                l.wide[ps].id[..n].to_vec()
+            } else {
+                (0..n).map(|i| l.packets[ps + i / 4].id[i % 4]).collect()
+            };
+            chunks.push(ids);
+        }
+    }
+    let mut all: Vec<u32> = chunks.iter().flatten().copied().collect();
+    all.sort_unstable();
+    assert_eq!(all, (0..100).collect::<Vec<u32>>());
+    for c in &chunks {
+        let (lo, hi) = (c.iter().min().unwrap(), c.iter().max().unwrap());
+        assert!(c.len() <= 16 && (hi - lo) as usize == c.len() - 1, "{c:?}");
+    }
+    // Down onto triangle 50: the root is the only node of the tree visited, and only the
+    // chunk holding triangle 50 is tested (64 triangles with the run whole).
+    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert!(st.nodes == 1 && st.tris <= 16, "{st:?}");
+    // Every triangle is found, by closest hit, single occlusion and the stream; the gaps
+    // between them are empty.
+    let segs: Vec<Segment> = (0..200)
+        .map(|i| Segment {
+            origin: Vec3::new(i as f32 + 0.25, 0.25, 1.0),
+            dir: -Vec3::Z,
+            tmin: 0.0,
+            tmax: 2.0,
+        })
+        .collect();
+    let mut out = vec![false; segs.len()];
+    rc.occluded_stream(&segs, &mut out);
+    for (i, (sg, &o)) in segs.iter().zip(&out).enumerate() {
+        let hit = i % 2 == 0;
+        assert_eq!(o, hit, "{i}");
+        assert_eq!(rc.occluded(sg.origin, sg.dir, 0.0, 2.0), hit, "{i}");
+        let h = rc.closest(sg.origin, sg.dir, 0.0, 2.0).map(|h| h.tri);
+        assert_eq!(h, hit.then_some(i as u32 / 2), "{i}");
+    }
 }
 
 #[test]
@@ -393,7 +458,8 @@ fn long_runs_go_to_wide_packets() {
         surfaces: (0..20).collect(),
     });
     let t = ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default());
-    let rc = RayCaster::new(&s, &t);
+    // The run kept whole (tight boxes may split it into pieces).
+    let rc = RayCaster::with_boxes(&s, &t, Boxes::Nodes);
     let l = &rc.layout;
     assert_eq!((l.wide.len(), l.packets.len()), (2, 1));
     assert_eq!(l.wide[1].id[..5], [16, 17, 18, 19, u32::MAX]);
