@@ -63,6 +63,21 @@ fn row_of_triangles(name: &str, n: usize) -> Scene {
     })
 }
 
+/// Batch occlusion of segments straight down from `origins`, `t ∈ [0, 2]`.
+fn stream_down(rc: &RayCaster, origins: impl Iterator<Item = Vec3>) -> Vec<bool> {
+    let segs: Vec<Segment> = origins
+        .map(|origin| Segment {
+            origin,
+            dir: -Vec3::Z,
+            tmin: 0.0,
+            tmax: 2.0,
+        })
+        .collect();
+    let mut out = vec![false; segs.len()];
+    rc.occluded_stream(&segs, &mut out);
+    out
+}
+
 /// A root whose children are one leaf per triangle.
 fn one_leaf_per_triangle(s: &Scene) -> ClusterTree {
     let n = s.num_triangles();
@@ -192,14 +207,12 @@ fn a_sparse_run_is_visited_in_distance_order() {
     let mut st = RayStats::default();
     assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
     assert_eq!((st.nodes, st.tris), (1, 64));
-    let mut out = [false; 2];
-    let segs = [0.25f32, 1.25].map(|y| Segment {
-        origin: Vec3::new(100.25, y, 1.0),
-        dir: -Vec3::Z,
-        tmin: 0.0,
-        tmax: 2.0,
-    });
-    rc.occluded_stream(&segs, &mut out);
+    let out = stream_down(
+        &rc,
+        [0.25f32, 1.25]
+            .map(|y| Vec3::new(100.25, y, 1.0))
+            .into_iter(),
+    );
     assert_eq!(out, [true, false]);
 }
 
@@ -248,21 +261,13 @@ fn a_long_run_is_split_into_pieces() {
     assert!(st.nodes == 1 && st.tris <= 16, "{st:?}");
     // Every triangle is found, by closest hit, single occlusion and the stream; the gaps
     // between them are empty.
-    let segs: Vec<Segment> = (0..200)
-        .map(|i| Segment {
-            origin: Vec3::new(i as f32 + 0.25, 0.25, 1.0),
-            dir: -Vec3::Z,
-            tmin: 0.0,
-            tmax: 2.0,
-        })
-        .collect();
-    let mut out = vec![false; segs.len()];
-    rc.occluded_stream(&segs, &mut out);
-    for (i, (sg, &o)) in segs.iter().zip(&out).enumerate() {
+    let origin = |i: usize| Vec3::new(i as f32 + 0.25, 0.25, 1.0);
+    let out = stream_down(&rc, (0..200).map(origin));
+    for (i, &o) in out.iter().enumerate() {
         let hit = i % 2 == 0;
         assert_eq!(o, hit, "{i}");
-        assert_eq!(rc.occluded(sg.origin, sg.dir, 0.0, 2.0), hit, "{i}");
-        let h = rc.closest(sg.origin, sg.dir, 0.0, 2.0).map(|h| h.tri);
+        assert_eq!(rc.occluded(origin(i), -Vec3::Z, 0.0, 2.0), hit, "{i}");
+        let h = rc.closest(origin(i), -Vec3::Z, 0.0, 2.0).map(|h| h.tri);
         assert_eq!(h, hit.then_some(i as u32 / 2), "{i}");
     }
 }
@@ -306,20 +311,16 @@ fn packets_and_groups_hold_wide_nodes() {
         assert!(!rc.occluded(o + Vec3::new(0.0, 2.0, 0.0), -Vec3::Z, 0.0, 2.0));
     }
     // The stream gives the same answers, in order.
-    let segs: Vec<Segment> = (0..12)
-        .map(|i| Segment {
-            origin: Vec3::new(
+    let out = stream_down(
+        &rc,
+        (0..12).map(|i| {
+            Vec3::new(
                 (i / 2) as f32 * 2.0 + 0.25,
                 0.25 + 2.0 * (i % 2) as f32,
                 1.0,
-            ),
-            dir: -Vec3::Z,
-            tmin: 0.0,
-            tmax: 2.0,
-        })
-        .collect();
-    let mut out = vec![false; segs.len()];
-    rc.occluded_stream(&segs, &mut out);
+            )
+        }),
+    );
     let want: Vec<bool> = (0..12).map(|i| i % 2 == 0).collect();
     assert_eq!(out, want);
 }
