@@ -1,6 +1,8 @@
 //! Traversal layout of a cluster tree: the tree's own nodes and children, stored for fast
-//! box tests (the topology is kept exactly: no node is added, merged or skipped, and every
-//! triangle is tested at the node it is attached to).
+//! box tests (the topology is kept: no node is added or merged, and every triangle is tested
+//! at the node it is attached to; with tight boxes a node without triangles of its own and
+//! with a single child, whose box is its child's, is passed through: its parent's lane refers
+//! to the child).
 //!
 //! - A node with children (or with more triangles than a leaf reference can hold) owns
 //!   `⌈children/4⌉` consecutive [`Group`]s of 128 bytes: the boxes of up to four children in
@@ -396,8 +398,10 @@ pub enum Boxes {
     /// and its children's boxes), and the triangles attached to an inner node bounded by a
     /// box of their own in a free lane of the node's last group, so that they are tested
     /// only when the ray hits that box. Same nodes, children and triangles as the tree: only
-    /// the boxes are tighter. Differs from [`Boxes::Cluster`] only where the strategy's boxes
-    /// are loose (`kdt` and `obt` cells) and at inner nodes with triangles of their own.
+    /// the boxes are tighter, and a node without triangles and with one child (the empty half
+    /// of a `kdt`/`obt` cell), whose tight box is its child's, is passed through. Differs from
+    /// [`Boxes::Cluster`] only where the strategy's boxes are loose (`kdt` and `obt` cells),
+    /// at such nodes and at inner nodes with triangles of their own.
     Nodes,
     /// The strategy's own boxes (grown to contain their contents exactly), and the triangles
     /// of a node tested whenever the node is visited: the traversal the paper describes (the
@@ -553,6 +557,12 @@ impl Layout {
                     }
                 });
         }
+        // Nodes a ray passes through for free with tight boxes: no triangles of their own and
+        // one child, whose box is theirs (an empty half of a k-d cell). Their parent's lane
+        // refers to the child directly.
+        let pass: Vec<bool> = (0..n)
+            .map(|i| boxes != Boxes::Cluster && own[i].is_empty() && kids(i as u32).count() == 1)
+            .collect();
         // Pass 1: references, group and triangle positions.
         let mut refs = vec![NONE; n];
         let mut tri_pos = vec![0usize; n];
@@ -569,6 +579,9 @@ impl Layout {
         };
         for &id in &order {
             let i = id as usize;
+            if pass[i] {
+                continue;
+            }
             let c = kids(id).count();
             let t = own[i].len();
             // Every chunk starts at most `t` packets further on, every group below RUN.
@@ -648,8 +661,19 @@ impl Layout {
             };
             nw
         ];
+        // The reference a lane holding node `i` gets: its own, or that of the first node below
+        // it that a ray does not pass through for free (children first).
+        let mut link = refs.clone();
+        for &id in order.iter().rev() {
+            if pass[id as usize] {
+                link[id as usize] = kids(id).map(|c| link[c as usize]).next().unwrap_or(NONE);
+            }
+        }
         for &id in &order {
             let i = id as usize;
+            if pass[i] {
+                continue;
+            }
             let r = refs[i];
             let ids = &own[i];
             if r & LEAF == 0 {
@@ -657,7 +681,7 @@ impl Layout {
                 let k: Vec<u32> = kids(id).collect();
                 let children = k
                     .iter()
-                    .map(|&c| (bound[c as usize], refs[c as usize], node_faces[c as usize]));
+                    .map(|&c| (bound[c as usize], link[c as usize], node_faces[c as usize]));
                 // The box, reference and face bits of a piece of the node's own run.
                 let lane_of = |p: &Piece| {
                     let tris = || {
@@ -744,7 +768,7 @@ impl Layout {
         let b = &bound[0];
         Layout {
             root_box: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
-            root: Some(refs[0]),
+            root: Some(link[0]),
             groups,
             faces,
             packets,

@@ -273,6 +273,55 @@ fn a_long_run_is_split_into_pieces() {
 }
 
 #[test]
+fn rays_pass_through_nodes_holding_only_one_child() {
+    // Root → (leaf: triangle 0, node without triangles → leaf: triangle 1), the empty half of
+    // a k-d cell. With tight boxes the middle node's box is its child's: the root's lane
+    // refers to the leaf directly and the middle node has no group; with the cluster's boxes
+    // every node is visited.
+    let s = row_of_triangles("chain", 2);
+    let mut b = BuildTree::default();
+    let leaf0 = b.push(BuildNode {
+        bbox: s.tri_bbox(0),
+        children: vec![],
+        surfaces: vec![0],
+    });
+    let leaf1 = b.push(BuildNode {
+        bbox: s.tri_bbox(1),
+        children: vec![],
+        surfaces: vec![1],
+    });
+    let mid = b.push(BuildNode {
+        bbox: s.tri_bbox(1),
+        children: vec![leaf1],
+        surfaces: vec![],
+    });
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: vec![leaf0, mid],
+        surfaces: vec![],
+    });
+    let t = ClusterTree::from_build(b, 2, Strategy::Kdt, ClusterConfig::default());
+    assert_eq!(t.nodes.len(), 4);
+    let o = Vec3::new(2.25, 0.25, 1.0);
+    for (boxes, groups, nodes) in [
+        (Boxes::Tight, 1, 2),
+        (Boxes::Nodes, 1, 2),
+        (Boxes::Cluster, 2, 3),
+    ] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        assert_eq!(rc.layout.groups.len(), groups, "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        assert_eq!((st.nodes, st.tris), (nodes, 1), "{boxes:?}");
+        assert_eq!(rc.closest(o, -Vec3::Z, 0.0, 2.0).map(|h| h.tri), Some(1));
+        assert_eq!(
+            stream_down(&rc, [o, o - Vec3::X].into_iter()),
+            [true, false]
+        );
+    }
+}
+
+#[test]
 fn tight_boxes_shrink_a_loose_cluster_box() {
     // A root box far larger than its contents (a k-d cell): the tight root box is the
     // triangles' box, so a ray through the empty part of the cell visits nothing (with the
