@@ -33,11 +33,12 @@ pub struct Args {
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
     #[arg(long)]
     pub brute: bool,
-    /// Boxes the traversal tests: tight (every node's box shrunk to what lies below it, the
-    /// triangles attached to an inner node behind a box of their own, and long runs of them
-    /// split into pieces behind boxes of their own), nodes (the same without splitting runs)
-    /// or cluster (the strategy's own boxes, e.g. the k-d cells of kdt/obt, and a node's
-    /// triangles tested whenever it is visited). Same nodes, triangles and results each way.
+    /// Boxes the traversal tests: tight (every node's box shrunk to what lies below it, a
+    /// node with one child and no triangles passed through, the triangles attached to an
+    /// inner node behind a box of their own, and long runs of them split into pieces behind
+    /// boxes of their own), nodes (the same without splitting runs) or cluster (the
+    /// strategy's own boxes, e.g. the k-d cells of kdt/obt, and every node visited, its
+    /// triangles tested whenever it is). Each triangle is tested at its node; same results.
     #[arg(long, default_value = "tight")]
     pub boxes: String,
     /// Also write the triangles and segments to FILE, for casting the same segments with

@@ -336,13 +336,14 @@ pub fn markdown(d: &ReportData) -> String {
         match boxes {
             Boxes::Tight => {
                 "each node's box shrunk to its contents, a node's own surfaces behind a box of \
-                 their own, long runs of them split into pieces behind boxes of their own; \
-                 same nodes and surfaces as the tree; `--ray-boxes cluster` for the \
-                 strategies' own boxes"
+                 their own, long runs of them split into pieces behind boxes of their own, a \
+                 node with one child and no surfaces passed through; each surface tested at \
+                 its node; `--ray-boxes cluster` for the strategies' own boxes"
             }
             Boxes::Nodes => {
                 "each node's box shrunk to its contents, a node's own surfaces behind one box \
-                 of their own; same nodes and surfaces as the tree"
+                 of their own, a node with one child and no surfaces passed through; each \
+                 surface tested at its node"
             }
             Boxes::Cluster => "the strategies' own boxes, as in the paper",
         }
