@@ -324,18 +324,15 @@ fn split_into(
     let boxes: Vec<Aabb> = part.iter().map(|&s| scene.tri_bbox(s as usize)).collect();
     // Positions in `part` sorted along axis `a` by box centre, ties by triangle id.
     let order = |a: usize| {
-        let mut o: Vec<u32> = (0..n as u32).collect();
-        let key = |i: u32| boxes[i as usize].min[a] + boxes[i as usize].max[a];
-        o.sort_unstable_by(|&x, &y| {
-            key(x)
-                .total_cmp(&key(y))
-                .then(part[x as usize].cmp(&part[y as usize]))
-        });
-        o
+        let mut keyed: Vec<(f32, u32, u32)> = (0..n)
+            .map(|i| (boxes[i].min[a] + boxes[i].max[a], part[i], i as u32))
+            .collect();
+        keyed.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        keyed.into_iter().map(|k| k.2).collect::<Vec<u32>>()
     };
     // Cut where the two sides' surface areas times their triangle counts are least (each side
     // keeps at least one triangle per range it is split into), over the three axes.
-    let mut best = (f64::INFINITY, 0, 0);
+    let (mut best, mut best_order) = ((f64::INFINITY, 0), Vec::new());
     let mut right = vec![0f64; n + 1];
     for a in 0..3 {
         let sorted = order(a);
@@ -345,6 +342,7 @@ fn split_into(
             right[i] = b.surface_area() as f64;
         }
         let mut b = Aabb::EMPTY;
+        let mut improved = false;
         for i in 1..n {
             b.grow_box(&boxes[sorted[i - 1] as usize]);
             if i < k1 || n - i < k - k1 {
@@ -352,13 +350,16 @@ fn split_into(
             }
             let c = b.surface_area() as f64 * i as f64 + right[i] * (n - i) as f64;
             if c < best.0 {
-                best = (c, a, i);
+                best = (c, i);
+                improved = true;
             }
         }
+        if improved || best_order.is_empty() {
+            best_order = sorted;
+        }
     }
-    let (_, a, mid) = best;
-    let mid = mid.max(k1);
-    let sorted: Vec<u32> = order(a).iter().map(|&i| part[i as usize]).collect();
+    let mid = best.1.max(k1);
+    let sorted: Vec<u32> = best_order.iter().map(|&i| part[i as usize]).collect();
     part.copy_from_slice(&sorted);
     let mid = range.start + mid;
     split_into(scene, ids, range.start..mid, k1, out);
