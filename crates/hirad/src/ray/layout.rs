@@ -282,8 +282,8 @@ impl RunTree {
 /// Cost of visiting a piece of a split run (a step of the traversal and its box test), in
 /// sixteen-wide packet tests ([`test_cost`]). Set by measurement (`raybench`, 1 thread,
 /// kdt/obt/okdt/tf-oct on office, soup, bathroom, graz_office, copper_beech; 0, 0.5, 1, 1.5,
-/// 2, 3 and 5): from 3 up, fewer runs are split and kdt falls back towards the unsplit rates
-/// (graz_office 0.53, soup 0.27 of sah); 0 to 1.5 are within the noise of each other.
+/// 2 and 3): at 3 fewer runs are split and graz_office kdt runs at 0.55 of sah against 0.63
+/// at 1 (0.53 unsplit); 0 to 1.5 are within the noise of each other.
 const STEP_COST: f64 = 1.0;
 
 /// Cost of testing a run of `n` triangles, in sixteen-wide packet tests.
