@@ -86,8 +86,8 @@ pub(super) struct Group {
     /// `[min x, min y, min z, max x, max y, max z]`, one lane per child; empty lanes hold an
     /// inverted infinite box (never hit).
     pub b: [[f32; 4]; 6],
-    /// Child references: a group index, a leaf ([`LEAF`] bit), the node's own run ([`RUN`]
-    /// bit) or [`NONE`].
+    /// Child references: a group index, a leaf ([`LEAF`] bit; with the [`CHUNK`] bit a chunk
+    /// of a split run), the node's own run ([`RUN`] bit) or [`NONE`].
     pub child: [u32; 4],
     /// The node's own triangle run: first packet and number of triangles. Held by the first
     /// group of a node and tested whenever the node is visited, unless the run has a box of
@@ -105,7 +105,8 @@ pub(super) struct Group {
     /// pieces of such a run split into a [`RunTree`], which occlusion queries visit before the
     /// other lanes hit ([`FIRST`] shifted by the lane).
     pub eager: u8,
-    /// Bit of the lane holding the box of the node's own triangle run (0: none in this group).
+    /// Bit of the lane holding the box of the node's own triangle run (0: none in this group);
+    /// [`SUB`] in a group of pieces of a split run.
     pub run: u16,
 }
 
@@ -227,11 +228,11 @@ impl RunTree {
             .sum()
     }
 
-    /// Whether splitting pays: the expected cost of the pieces against testing the whole run
-    /// when its box is hit (`pushed`: after a step of its own).
-    fn pays(&self, scene: &Scene, ids: &[u32], pushed: bool) -> bool {
-        let sa = run_box(scene, ids).surface_area() as f64;
-        let whole = test_cost(ids.len()) + if pushed { STEP_COST } else { 0.0 };
+    /// Whether splitting a run of `n` triangles whose box has surface area `sa` pays: the
+    /// expected cost of the pieces against testing the whole run when its box is hit
+    /// (`pushed`: after a step of its own).
+    fn pays(&self, n: usize, sa: f64, pushed: bool) -> bool {
+        let whole = test_cost(n) + if pushed { STEP_COST } else { 0.0 };
         sa > 0.0 && RunTree::cost(&self.top, sa) < whole
     }
 
@@ -303,10 +304,10 @@ fn run_box(scene: &Scene, ids: &[u32]) -> Aabb {
     })
 }
 
-/// Split `ids[range]` into `k` ranges of nearby triangles, appended to `out`: cut at the
-/// proportional rank of the triangles' box centres along the longest axis of their spread,
-/// recursively. Ties are broken by triangle id, so the result does not depend on the input
-/// order.
+/// Split `ids[range]` into `k` ranges of nearby triangles, appended to `out`: sorted by box
+/// centre along the axis, and cut at the rank, where the two sides' surface areas times their
+/// triangle counts are least (surface area heuristic), recursively. Ties are broken by
+/// triangle id, so the result does not depend on the input order.
 fn split_into(
     scene: &Scene,
     ids: &mut [u32],
@@ -366,17 +367,17 @@ fn split_into(
     split_into(scene, ids, mid..range.end, k - k1, out);
 }
 
-/// Whether occlusion queries test the run `ids` as soon as its box is hit
+/// Whether occlusion queries test the run `ids` (of box `b`) as soon as its box is hit
 /// ([`EAGER_HITS_PER_TEST`]): the expected number of its triangles crossed by a random line
 /// through its box, 2·(triangle area) / (box surface area), per triangle.
-fn eager_run(scene: &Scene, ids: &[u32]) -> bool {
-    let mut b = Aabb::EMPTY;
-    let mut area = 0.0;
-    for &t in ids {
-        let [p, q, r] = scene.tri_vertices(t as usize);
-        area += crate::geom::triangle_area_f64(p, q, r);
-        b.grow_box(&scene.tri_bbox(t as usize));
-    }
+fn eager_run(scene: &Scene, ids: &[u32], b: &Aabb) -> bool {
+    let area: f64 = ids
+        .iter()
+        .map(|&t| {
+            let [p, q, r] = scene.tri_vertices(t as usize);
+            crate::geom::triangle_area_f64(p, q, r)
+        })
+        .sum();
     let sa = b.surface_area() as f64;
     let crossed = if sa > 0.0 { 2.0 * area / sa } else { 1.0 };
     crossed >= EAGER_HITS_PER_TEST * ids.len() as f64
@@ -386,8 +387,8 @@ fn eager_run(scene: &Scene, ids: &[u32]) -> bool {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Boxes {
-    /// As [`Boxes::Nodes`], and a node's own run longer than [`CHUNK_MAX`] triangles is
-    /// split into pieces of nearby triangles behind boxes of their own ([`RunTree`]: cut
+    /// As [`Boxes::Nodes`], and a node's own run longer than 16 triangles is split into
+    /// pieces of nearby triangles behind boxes of their own (`RunTree` in `layout.rs`: cut
     /// by the surface area heuristic, down to chunks of at most 16), where a cost model says
     /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
     /// run would have taken, so every triangle is still reached through, and only through,
@@ -406,7 +407,7 @@ pub enum Boxes {
     Nodes,
     /// The strategy's own boxes (grown to contain their contents exactly), and the triangles
     /// of a node tested whenever the node is visited: the traversal the paper describes (the
-    /// face bits of [`face_bits`] apply to every kind of boxes).
+    /// face bits of `layout.rs` apply to every kind of boxes).
     Cluster,
 }
 
@@ -535,9 +536,51 @@ impl Layout {
             k.reverse();
             stack.extend(k);
         }
-        // Each node's own triangles; with tight boxes, a run longer than CHUNK_MAX (that is not
-        // a leaf's run held in place) is reordered into pieces behind boxes of their own.
+        // Each node's own triangles.
         let mut own: Vec<Vec<u32>> = (0..n as u32).map(|id| surfs(id).collect()).collect();
+        // Boxes of the nodes' own runs and of the nodes (grown to, or tight around, their
+        // contents), children first.
+        let mut run_bound = vec![Aabb::EMPTY; n];
+        let mut bound = vec![Aabb::EMPTY; n];
+        let mut run_faces = vec![0u8; n];
+        let mut node_faces = vec![0u8; n];
+        for &id in order.iter().rev() {
+            let rb = run_box(scene, &own[id as usize]);
+            run_bound[id as usize] = rb;
+            let mut b = match boxes {
+                Boxes::Tight | Boxes::Nodes => rb,
+                Boxes::Cluster => {
+                    let mut b = tree.nodes[id as usize].bbox;
+                    b.grow_box(&rb);
+                    b
+                }
+            };
+            for c in kids(id) {
+                let cb = bound[c as usize];
+                b.grow_box(&cb);
+            }
+            bound[id as usize] = b;
+            let tris = || {
+                own[id as usize]
+                    .iter()
+                    .map(|&s| scene.tri_bbox(s as usize))
+                    .map(|t| (t, flat_bits(&t)))
+            };
+            run_faces[id as usize] = face_bits(&rb, tris());
+            let below = kids(id).map(|c| (bound[c as usize], node_faces[c as usize]));
+            node_faces[id as usize] = face_bits(&b, tris().chain(below));
+        }
+        // Whether occlusion tests a node's own triangles at once when their box is hit (in a
+        // free lane of the node).
+        let eager: Vec<bool> = (0..n)
+            .map(|i| {
+                boxes != Boxes::Cluster
+                    && !own[i].is_empty()
+                    && eager_run(scene, &own[i], &run_bound[i])
+            })
+            .collect();
+        // With tight boxes, a run longer than CHUNK_MAX (that is not a leaf's run held in
+        // place) is reordered into pieces behind boxes of their own where that pays.
         let mut runs: Vec<Option<RunTree>> = vec![None; n];
         if boxes == Boxes::Tight {
             use rayon::prelude::*;
@@ -547,11 +590,10 @@ impl Layout {
                 .for_each(|(id, (ids, run))| {
                     let c = kids(id as u32).count();
                     if ids.len() > CHUNK_MAX && (c > 0 || ids.len() > LEAF_MAX_TRIS) {
-                        let free = 4 - c % 4;
                         let mut split = ids.clone();
-                        let rt = RunTree::new(scene, &mut split, free);
-                        let pushed = c % 4 != 0 && !eager_run(scene, ids);
-                        if rt.pays(scene, &split, pushed) {
+                        let rt = RunTree::new(scene, &mut split, 4 - c % 4);
+                        let sa = run_bound[id].surface_area() as f64;
+                        if rt.pays(ids.len(), sa, c % 4 != 0 && !eager[id]) {
                             *ids = split;
                             *run = Some(rt);
                         }
@@ -585,8 +627,10 @@ impl Layout {
             }
             let c = kids(id).count();
             let t = own[i].len();
-            // Every chunk starts at most `t` packets further on, every group below RUN.
-            let fits = np[0].max(np[1]) + t <= LEAF_MAX_START && ng + 2 * t < RUN as usize;
+            // Every chunk starts at most `t` packets further on; the node's groups (its children
+            // and top pieces, then fewer groups of pieces than triangles) stay below RUN.
+            let fits =
+                np[0].max(np[1]) + t <= LEAF_MAX_START && ng + c.div_ceil(4) + 1 + t < RUN as usize;
             if let Some(rt) = runs[i].as_mut().filter(|_| fits) {
                 refs[i] = ng as u32;
                 ng += (c + rt.top.len()).div_ceil(4);
@@ -611,40 +655,6 @@ impl Layout {
                 refs[i] = ng as u32;
                 ng += c.div_ceil(4).max(1);
             }
-        }
-        // Boxes of the nodes' own runs and of the nodes (grown to, or tight around, their
-        // contents), children first.
-        let mut run_bound = vec![Aabb::EMPTY; n];
-        let mut bound = vec![Aabb::EMPTY; n];
-        let mut run_faces = vec![0u8; n];
-        let mut node_faces = vec![0u8; n];
-        for &id in order.iter().rev() {
-            let mut rb = Aabb::EMPTY;
-            for s in surfs(id) {
-                rb.grow_box(&scene.tri_bbox(s as usize));
-            }
-            run_bound[id as usize] = rb;
-            let mut b = match boxes {
-                Boxes::Tight | Boxes::Nodes => rb,
-                Boxes::Cluster => {
-                    let mut b = tree.nodes[id as usize].bbox;
-                    b.grow_box(&rb);
-                    b
-                }
-            };
-            for c in kids(id) {
-                let cb = bound[c as usize];
-                b.grow_box(&cb);
-            }
-            bound[id as usize] = b;
-            let tris = || {
-                surfs(id)
-                    .map(|s| scene.tri_bbox(s as usize))
-                    .map(|t| (t, flat_bits(&t)))
-            };
-            run_faces[id as usize] = face_bits(&rb, tris());
-            let below = kids(id).map(|c| (bound[c as usize], node_faces[c as usize]));
-            node_faces[id as usize] = face_bits(&b, tris().chain(below));
         }
         // Pass 2: fill in.
         let mut groups = vec![Group::default(); ng];
@@ -685,21 +695,14 @@ impl Layout {
                     .map(|&c| (bound[c as usize], link[c as usize], node_faces[c as usize]));
                 // The box, reference and face bits of a piece of the node's own run.
                 let lane_of = |p: &Piece| {
-                    let tris = || {
-                        ids[p.range.clone()]
-                            .iter()
-                            .map(|&s| scene.tri_bbox(s as usize))
-                            .map(|t| (t, flat_bits(&t)))
-                    };
-                    let b = tris().fold(Aabb::EMPTY, |mut b, (t, _)| {
-                        b.grow_box(&t);
-                        b
-                    });
-                    (b, p.r, face_bits(&b, tris()))
+                    let tris = &ids[p.range.clone()];
+                    let b = run_box(scene, tris);
+                    let items = tris.iter().map(|&s| scene.tri_bbox(s as usize));
+                    (b, p.r, face_bits(&b, items.map(|t| (t, flat_bits(&t)))))
                 };
                 let rt = runs[i].as_ref();
                 let top = rt.into_iter().flat_map(|rt| rt.top.iter().map(lane_of));
-                let first = rt.is_some() && eager_run(scene, ids);
+                let first = rt.is_some() && eager[i];
                 let mut lanes = 0usize;
                 for (j, (b, cr, f)) in children.chain(top).enumerate() {
                     let g = &mut groups[g0 + j / 4];
@@ -737,7 +740,7 @@ impl Layout {
                     g.set_lane(lane, &run_bound[i], RUN | at as u32);
                     faces[at] |= (run_faces[i] as u32) << (8 * lane);
                     g.run = 1 << lane;
-                    if eager_run(scene, ids) {
+                    if eager[i] {
                         g.eager = 1 << lane;
                     }
                 }

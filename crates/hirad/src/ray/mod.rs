@@ -1,4 +1,4 @@
-//! Ray casting through a [`ClusterTree`](crate::cluster::ClusterTree) (paper §3.2.2: one
+//! Ray casting through a [`ClusterTree`] (paper §3.2.2: one
 //! structure for clustering and ray casting).
 //!
 //! Interface used by the solver and the renderer: [`RayCaster::occluded`] (any hit) and
@@ -14,11 +14,12 @@
 //! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
 //! with its f64 hit distance decides every candidate); the box test is conservative
 //! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
-//! contain their contents exactly: tight around them by default, a node's own triangles
-//! behind a box of their own, or the strategy's boxes grown to their contents
+//! contain their contents exactly: tight around them by default (a node's own triangles
+//! behind boxes of their own, a long run of them split into pieces, a node holding only one
+//! child passed through), or the strategy's boxes grown to their contents
 //! ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
 //! an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
-//! and the watertight test never reports them ([`layout`]'s `Ray4::flat_in_plane`: a segment
+//! and the watertight test never reports them (`layout.rs`'s `Ray4::flat_in_plane`: a segment
 //! along a floor no longer visits every floor cell it passes). So the result equals a
 //! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
 //! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
