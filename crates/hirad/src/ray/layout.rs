@@ -806,26 +806,33 @@ impl Layout {
         }
     }
 
-    /// True when a triangle of the run `(ps, n)` is hit in `[tmin, tmax]`. Adds the
-    /// triangles tested to `*tested`.
+    /// True when a triangle of the run `(ps, n)` that `skip` does not leave out is hit in
+    /// `[tmin, tmax]`. Adds the triangles tested to `*tested`.
     #[inline(always)]
-    pub(super) fn any_hit(
+    pub(super) fn any_hit<F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
-        ps: usize,
-        n: usize,
+        (ps, n): (usize, usize),
         tmin: f32,
         tmax: f32,
         tested: &mut u64,
+        skip: &F,
     ) -> bool {
         if n >= WIDE_MIN {
-            return self.any_hit_wide(r, ps, n, tmin, tmax, tested);
+            return self.any_hit_wide(r, ps, n, tmin, tmax, tested, skip);
         }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
             let valid = lane_mask::<4>(n, k);
             *tested += valid.count_ones() as u64;
-            if any_of(r, &p.v, candidates4(r, &p.v) & valid, tmin, tmax) {
+            if any_of(
+                r,
+                &p.v,
+                &p.id,
+                candidates4(r, &p.v) & valid,
+                (tmin, tmax),
+                skip,
+            ) {
                 return true;
             }
         }
@@ -862,7 +869,8 @@ impl Layout {
 
     /// [`Layout::any_hit`] of a run stored in wide packets.
     #[inline(never)]
-    fn any_hit_wide(
+    #[allow(clippy::too_many_arguments)]
+    fn any_hit_wide<F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
         ps: usize,
@@ -870,13 +878,15 @@ impl Layout {
         tmin: f32,
         tmax: f32,
         tested: &mut u64,
+        skip: &F,
     ) -> bool {
         let avx512 = has_avx512();
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
             let valid = lane_mask::<16>(n, k);
             *tested += valid.count_ones() as u64;
-            if any_of(r, &w.v, wide_candidates(r, w, valid, avx512), tmin, tmax) {
+            let m = wide_candidates(r, w, valid, avx512);
+            if any_of(r, &w.v, &w.id, m, (tmin, tmax), skip) {
                 return true;
             }
         }
@@ -971,14 +981,21 @@ fn put<const N: usize>(
     ids[lane] = id;
 }
 
-/// True when one of the candidate lanes `m` of a packet (four or sixteen wide) is hit in
-/// `[tmin, tmax]`.
+/// True when one of the candidate lanes `m` of a packet (four or sixteen wide) whose triangle
+/// `skip` does not leave out is hit in `[tmin, tmax]`.
 #[inline(always)]
-fn any_of<const N: usize>(r: &RayPre, v: &[[f32; N]; 9], mut m: u32, tmin: f32, tmax: f32) -> bool {
+fn any_of<const N: usize, F: Fn(u32) -> bool>(
+    r: &RayPre,
+    v: &[[f32; N]; 9],
+    ids: &[u32; N],
+    mut m: u32,
+    (tmin, tmax): (f32, f32),
+    skip: &F,
+) -> bool {
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
-        if intersect(r, &tri_of(v, i), tmin, tmax).is_some() {
+        if !skip(ids[i]) && intersect(r, &tri_of(v, i), tmin, tmax).is_some() {
             return true;
         }
     }

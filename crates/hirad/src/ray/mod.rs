@@ -268,7 +268,7 @@ impl Lane {
             }
             self.len += mask.count_ones();
         }
-        if nt > 0 && l.any_hit(&self.r, ts, nt, self.tmin, self.tmax, &mut 0) {
+        if nt > 0 && l.any_hit(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false) {
             return Step::Hit;
         }
         if self.len > 0 {
@@ -319,7 +319,22 @@ impl<'a> RayCaster<'a> {
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
-        self.occluded_impl::<false>(origin, dir, tmin, tmax, &mut RayStats::default())
+        self.occluded_impl::<false, _>(origin, dir, tmin, tmax, &mut RayStats::default(), &|_| {
+            false
+        })
+    }
+
+    /// True when some triangle `t` with `!skip(t)` is hit for `t ∈ [tmin, tmax]` (the
+    /// solver's shadow rays leave out the surfaces of a link's own ends).
+    #[inline]
+    pub fn occluded_except<F: Fn(u32) -> bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (tmin, tmax): (f32, f32),
+        skip: &F,
+    ) -> bool {
+        self.occluded_impl::<false, F>(origin, dir, tmin, tmax, &mut RayStats::default(), skip)
     }
 
     /// The closest hit for `t ∈ [tmin, tmax]`.
@@ -338,7 +353,7 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> bool {
         stats.rays += 1;
-        self.occluded_impl::<true>(origin, dir, tmin, tmax, stats)
+        self.occluded_impl::<true, _>(origin, dir, tmin, tmax, stats, &|_| false)
     }
 
     /// [`RayCaster::closest`] that also adds its traversal counters to `stats`.
@@ -544,13 +559,14 @@ impl<'a> RayCaster<'a> {
     }
 
     #[inline(always)]
-    fn occluded_impl<const STATS: bool>(
+    fn occluded_impl<const STATS: bool, F: Fn(u32) -> bool>(
         &self,
         origin: Vec3,
         dir: Vec3,
         tmin: f32,
         tmax: f32,
         stats: &mut RayStats,
+        skip: &F,
     ) -> bool {
         let l = &self.layout;
         let Some(root) = l.root else {
@@ -588,7 +604,7 @@ impl<'a> RayCaster<'a> {
                 g.rank_first(&mut tn);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
-            if nt > 0 && l.any_hit(&r, ts, nt, tmin, tmax, &mut stats.tris) {
+            if nt > 0 && l.any_hit(&r, (ts, nt), tmin, tmax, &mut stats.tris, skip) {
                 return true;
             }
         }
