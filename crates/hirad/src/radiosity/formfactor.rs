@@ -108,7 +108,28 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) 
     if poly.len() < 3 || (x - poly[0]).dot(poly_normal) <= 0.0 {
         return 0.0;
     }
-    // Sutherland–Hodgman against the plane n·(p − x) ≥ 0.
+    let (clipped, m) = clip_to_hemisphere(x, n, poly);
+    if m < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    for e in 0..m {
+        let a = clipped[e] - x;
+        let b = clipped[(e + 1) % m] - x;
+        let c = a.cross(b);
+        let cl = c.length();
+        if cl <= 0.0 {
+            continue;
+        }
+        let theta = angle_from(cl, a.dot(b));
+        sum += theta * c.dot(n) / cl;
+    }
+    (sum.abs() / (2.0 * PI)).min(1.0)
+}
+
+/// The part of the convex polygon `poly` above the plane through `x` with normal `n`
+/// (Sutherland–Hodgman): its corners and their number (below 3: nothing is above).
+fn clip_to_hemisphere(x: DVec3, n: DVec3, poly: &[DVec3]) -> ([DVec3; 16], usize) {
     let mut clipped = [DVec3::ZERO; 16];
     let mut m = 0usize;
     let k = poly.len().min(15);
@@ -127,22 +148,39 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) 
             m += 1;
         }
     }
+    (clipped, m)
+}
+
+/// Area-uniform point, from two uniform numbers in [0, 1), of the part of triangle `v` that
+/// lies above the plane through `x` with normal `n`; `None` when no part of it does. A shadow
+/// ray from `x` is aimed at the part of the source that its kernel counts.
+pub fn sample_triangle_above(x: Vec3, n: Vec3, v: &[Vec3; 3], u1: f32, u2: f32) -> Option<Vec3> {
+    let xd = x.as_dvec3();
+    let nd = n.as_dvec3();
+    if v.iter().all(|p| nd.dot(p.as_dvec3() - xd) >= 0.0) {
+        return Some(sample_triangle(v, u1, u2));
+    }
+    let (c, m) = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()));
     if m < 3 {
-        return 0.0;
+        return None;
     }
-    let mut sum = 0.0;
-    for e in 0..m {
-        let a = clipped[e] - x;
-        let b = clipped[(e + 1) % m] - x;
-        let c = a.cross(b);
-        let cl = c.length();
-        if cl <= 0.0 {
-            continue;
-        }
-        let theta = angle_from(cl, a.dot(b));
-        sum += theta * c.dot(n) / cl;
+    // Pick a triangle of the fan (c0, ci, ci+1) by area, then a point on it.
+    let areas: Vec<f64> = (1..m - 1)
+        .map(|i| (c[i] - c[0]).cross(c[i + 1] - c[0]).length())
+        .collect();
+    let total: f64 = areas.iter().sum();
+    if total <= 0.0 {
+        return None;
     }
-    (sum.abs() / (2.0 * PI)).min(1.0)
+    let mut target = u1 as f64 * total;
+    let mut i = 0;
+    while i + 1 < areas.len() && target >= areas[i] {
+        target -= areas[i];
+        i += 1;
+    }
+    let u = (target / areas[i].max(1e-300)).clamp(0.0, 0.999_999_9) as f32;
+    let t = [c[0], c[i + 1], c[i + 2]].map(|p| p.as_vec3());
+    Some(sample_triangle(&t, u, u2))
 }
 
 /// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).
@@ -500,10 +538,10 @@ impl<'a> KernelCtx<'a> {
             // surface of a directional cluster drawn by hand-out weight (irradiance there over
             // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
             // centre, facing the source.
-            let (x, fx) = match (ri, recv_cdf.as_deref()) {
+            let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
                 (End::Surface { v, n: nr, .. }, _) => {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
-                    (x, Self::point_kernel(x, Some(nr), &src))
+                    (x, Self::point_kernel(x, Some(nr), &src), Some(nr))
                 }
                 (End::Cluster { .. }, Some(cdf)) => {
                     let total = cdf[cdf.len() - 1].1;
@@ -516,7 +554,8 @@ impl<'a> KernelCtx<'a> {
                     let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
                     let e = &self.elems.elems[id as usize];
                     let x = sample_triangle(&e.verts, u as f32, su[s][1]);
-                    (x, Self::point_kernel(x, Some(e.normal), &src) / w)
+                    let fx = Self::point_kernel(x, Some(e.normal), &src) / w;
+                    (x, fx, Some(e.normal))
                 }
                 (End::Cluster { node, c, .. }, None) => {
                     let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
@@ -527,8 +566,17 @@ impl<'a> KernelCtx<'a> {
                         fmax = fmax.max(fb);
                     }
                     let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
-                    (x, k)
+                    (x, k, None)
                 }
+            };
+            // A surface source's kernel at x counts the part of it above x's plane: aim the
+            // shadow ray there (a ray to a point behind x could pass where the counted part is
+            // hidden, e.g. from inside a thin slab to a desk the slab stands on).
+            let y = match (sj, nx) {
+                (End::Surface { v, .. }, Some(nr)) => {
+                    sample_triangle_above(x, nr, &v, sv[s][0], sv[s][1]).unwrap_or(y)
+                }
+                _ => y,
             };
             let vis = if fx > 0.0 || bounds {
                 rays += 1;
@@ -635,22 +683,17 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
-    /// Visibility of the segment x → y; the parts inside cluster ends' boxes are skipped
-    /// (a cluster's own contents do not shadow its exchanges).
+    /// Visibility of the segment x → y: every surface but those of the two ends can occlude
+    /// (a cluster's own contents do not shadow its exchanges, its neighbours' do).
     fn segment(&self, x: Vec3, rx: &End, y: Vec3, sy: &End) -> f64 {
-        let d = y - x;
-        let mut t0 = 1e-4f32;
-        let mut t1 = 1.0 - 1e-4f32;
-        if let End::Cluster { lo, hi, .. } = *rx {
-            t0 = t0.max(exit_param(x, d, lo, hi));
-        }
-        if let End::Cluster { lo, hi, .. } = *sy {
-            t1 = t1.min(1.0 - exit_param(y, -d, lo, hi));
-        }
         self.vis
-            .transmittance(x, y, t0, t1, rx.endpoint(), sy.endpoint())
+            .transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, rx.endpoint(), sy.endpoint())
     }
 }
+
+/// Shadow segments start and end this fraction of their length from their end points: the
+/// ends' own surfaces are left out by id, so this only absorbs rounding of the sample points.
+const SEG_EPS: f32 = 1e-6;
 
 /// Bounding sphere of a link end around its centroid: (centre, radius).
 fn end_sphere(e: &End) -> (DVec3, f64) {
@@ -664,20 +707,6 @@ fn end_sphere(e: &End) -> (DVec3, f64) {
             (c.as_dvec3(), r as f64)
         }
     }
-}
-
-/// Parameter where the ray `o + t d` (o inside the box) leaves the box `[lo, hi]`.
-fn exit_param(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> f32 {
-    let mut t = f32::INFINITY;
-    for a in 0..3 {
-        let da = d[a];
-        if da > 0.0 {
-            t = t.min((hi[a] - o[a]) / da);
-        } else if da < 0.0 {
-            t = t.min((lo[a] - o[a]) / da);
-        }
-    }
-    t.max(0.0)
 }
 
 #[cfg(test)]

@@ -14,7 +14,9 @@
 //! iteration that began with a refinement pass changes the power by less than that); the other
 //! iterations only gather and push-pull. Each leaf's kernels (its own links, its ancestors' and
 //! its clusters' weighted by the reception model) times its reflectance may not exceed
-//! [`GAIN_MAX`], which keeps the iteration convergent.
+//! [`GAIN_MAX`], which keeps the iteration convergent; the leaves this cap touches and the
+//! power it removes are counted in the statistics and warned about (a kernel error to find,
+//! not a feature).
 //!
 //! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
 //! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
@@ -50,10 +52,6 @@ const REFINE_DRIFT: f64 = 0.05;
 /// Physically `Σ_j F_ij ≤ 1`, so only leaves whose estimated kernels sum above `0.95 / ρ`
 /// are touched (none in a furnace of ρ = 0.5 unless the estimates are off by 90%).
 const GAIN_MAX: f64 = 0.95;
-
-/// A cluster receiver's link whose sampled kernel exceeds the `bf` oracle's estimate by more
-/// than this factor is judged again on the sampled kernel.
-const MISJUDGED: f64 = 2.0;
 
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
@@ -166,6 +164,8 @@ struct RootResult {
     direct: f64,
     /// Leaves whose kernel sum exceeded 1.
     clamped: u64,
+    /// Power (W, channel sum) the gain cap removed from them.
+    clamped_power: f64,
 }
 
 struct Solver<'a> {
@@ -589,23 +589,23 @@ impl<'a> Solver<'a> {
                 }
             };
             link.k = ev.k as f32;
-            // A cluster receiver's sampled kernel can be far above the centre estimate when
-            // some of its surfaces are much nearer the source than its centre: the oracle
-            // judged the wrong number, so judge the sampled one.
-            if allow
-                && ok == Oracle::Bf
-                && r.kind == Kind::Cluster
-                && ev.k > MISJUDGED * link.est as f64
-                && oracle::wants_refine(
-                    ok,
-                    self.eps,
-                    ev.k,
-                    self.el.b[sj as usize],
-                    r.rho.as_dvec3(),
-                )
-            {
-                if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                    return (a, *l, rays);
+            // The estimate must bound what the link carries: where the sampled kernel is
+            // larger (surfaces of a cluster much nearer the other end than its centre, or in
+            // front of a plane its centre lies behind), judge and keep that instead.
+            if ev.k > link.est as f64 {
+                link.est = ev.k as f32;
+                if allow
+                    && oracle::wants_refine(
+                        ok,
+                        self.eps,
+                        ev.k,
+                        self.el.b[sj as usize],
+                        r.rho.as_dvec3(),
+                    )
+                {
+                    if let Some(a) = oracle::choose_split(r, s, self.min_area) {
+                        return (a, *l, rays);
+                    }
                 }
             }
         }
@@ -746,6 +746,7 @@ impl<'a> Solver<'a> {
             .collect();
         let mut pw = super::stats::PowerStats::default();
         let mut clamped = 0u64;
+        let mut clamped_power = 0.0f64;
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
             for (id, b) in res.updates {
@@ -756,6 +757,7 @@ impl<'a> Solver<'a> {
             pw.gathered += res.gathered;
             pw.gathered_cluster += res.gathered_cluster;
             clamped += res.clamped;
+            clamped_power += res.clamped_power;
             pw.emitted += res.direct;
         }
         for r in roots {
@@ -767,6 +769,7 @@ impl<'a> Solver<'a> {
         pw.escaping = pw.radiosity - pw.gathered;
         self.stats.power = pw;
         self.stats.kernel_clamped_leaves = clamped;
+        self.stats.kernel_clamped_power = clamped_power;
     }
 
     /// Cluster radiosity = area average of the children, bottom-up.
@@ -885,6 +888,17 @@ impl<'a> Solver<'a> {
             0.0
         };
         st.rays = self.rays;
+        if st.kernel_clamped_leaves > 0 {
+            let msg = format!(
+                "{} leaves had kernels summing above {GAIN_MAX} / reflectance: the gain cap \
+                 removed {:.4e} W ({:.2}% of the emitted power) from their irradiance",
+                st.kernel_clamped_leaves,
+                st.kernel_clamped_power,
+                100.0 * st.kernel_clamped_power / st.power.emitted.max(1e-300)
+            );
+            tracing::warn!("{msg}");
+            st.warnings.push(msg);
+        }
         st.memory.peak_counted_bytes = self.peak;
         st.memory.element_bytes = (self.el.memory_bytes() + self.h_cluster.capacity() * 8) as u64;
         st.memory.link_bytes = self.set.memory_bytes() as u64;
@@ -926,7 +940,9 @@ fn push_rec(
         if gain > GAIN_MAX {
             out.clamped += 1;
             let f = GAIN_MAX / gain;
-            out.gathered -= area * (h * (1.0 - f)).element_sum();
+            let removed = area * (h * (1.0 - f)).element_sum();
+            out.gathered -= removed;
+            out.clamped_power += removed;
             h *= f;
         }
         let d = el.direct[id as usize];

@@ -105,6 +105,10 @@ pub struct SolveStats {
     /// 0.95 in the last gather: their irradiance was scaled down to that gain.
     #[serde(default)]
     pub kernel_clamped_leaves: u64,
+    /// Irradiance power (W, channel sum) the gain cap removed from those leaves in the last
+    /// push-pull.
+    #[serde(default)]
+    pub kernel_clamped_power: f64,
     /// Refinement passes run (refinement is repeated while the radiosity moves).
     #[serde(default)]
     pub refinements: u32,
