@@ -92,6 +92,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     println!("max dE*uv   {:.4}", e.max_delta_e);
     println!("mean dE*uv  {:.4}", e.mean_delta_e);
     println!("rel RMSE    {:.6}", e.rel_rmse);
+    println!("mean Y / ref {:.4}", e.mean_luminance_ratio);
     println!("white Yn    {:.6}", e.white_y);
     if let Some(h) = &r.heatmap {
         println!("wrote {h}");

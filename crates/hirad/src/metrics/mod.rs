@@ -141,6 +141,9 @@ pub struct ImageError {
     pub mean_delta_e: f64,
     /// Relative RMSE in linear RGB (module docs).
     pub rel_rmse: f64,
+    /// Mean luminance of the image over that of the reference (energy agreement).
+    #[serde(default)]
+    pub mean_luminance_ratio: f64,
     /// White luminance Yn used for CIELUV.
     pub white_y: f64,
     pub width: u32,
@@ -196,13 +199,16 @@ pub fn compare_with_white(image: &Image, reference: &Image, yn: f64) -> Result<I
     let de = delta_e_map(image, reference, yn)?;
     // Fixed-size chunks summed in order: the result does not depend on the thread count.
     const CHUNK: usize = 4096;
-    let partial: Vec<(f64, f64, f64, f64, f64)> = de
+    let partial: Vec<(f64, f64, f64, f64, f64, f64, f64)> = de
         .par_chunks(CHUNK)
         .zip(image.pixels.par_chunks(CHUNK))
         .zip(reference.pixels.par_chunks(CHUNK))
         .map(|((d, a), r)| {
             let (mut s1, mut s2, mut mx, mut diff2, mut ref2) = (0.0, 0.0, 0.0f64, 0.0, 0.0);
+            let (mut ya, mut yr) = (0.0, 0.0);
             for i in 0..d.len() {
+                ya += luminance(a[i]);
+                yr += luminance(r[i]);
                 let e = d[i] as f64;
                 s1 += e;
                 s2 += e * e;
@@ -210,11 +216,14 @@ pub fn compare_with_white(image: &Image, reference: &Image, yn: f64) -> Result<I
                 diff2 += (a[i].as_dvec3() - r[i].as_dvec3()).length_squared();
                 ref2 += r[i].as_dvec3().length_squared();
             }
-            (s1, s2, mx, diff2, ref2)
+            (s1, s2, mx, diff2, ref2, ya, yr)
         })
         .collect();
     let (mut s1, mut s2, mut mx, mut diff2, mut ref2) = (0.0, 0.0, 0.0f64, 0.0, 0.0);
+    let (mut ya, mut yr) = (0.0, 0.0);
     for p in partial {
+        ya += p.5;
+        yr += p.6;
         s1 += p.0;
         s2 += p.1;
         mx = mx.max(p.2);
@@ -234,6 +243,7 @@ pub fn compare_with_white(image: &Image, reference: &Image, yn: f64) -> Result<I
         max_delta_e: mx,
         mean_delta_e: s1 / n,
         rel_rmse,
+        mean_luminance_ratio: if yr > 0.0 { ya / yr } else { f64::NAN },
         white_y: yn,
         width: image.width,
         height: image.height,
