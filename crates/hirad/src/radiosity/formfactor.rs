@@ -210,7 +210,7 @@ pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
 }
 
 /// Samples and bounds of a link kernel.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct KernelEval {
     /// The kernel with visibility (form factor receiver → source).
     pub k: f64,
@@ -221,6 +221,13 @@ pub struct KernelEval {
     pub kmax: f64,
     /// Shadow rays cast.
     pub rays: u64,
+    /// Some samples with a positive kernel see the source and some do not.
+    pub mixed: bool,
+    /// Directional cluster sources: per sample, the surface element its point lies on and
+    /// its share of `k`, so that the transfer takes each sampled surface's own radiosity
+    /// (`Σ w_s B_s`) instead of the cluster's average over surfaces the receiver does not see
+    /// (the back faces of two-sided walls, a lamp behind a wall of the same cluster).
+    pub members: Vec<(u32, f32)>,
 }
 
 /// Everything needed to evaluate link kernels.
@@ -449,7 +456,11 @@ impl<'a> KernelCtx<'a> {
         match ri {
             End::Surface { v, n, c, .. } => {
                 let mut f = Self::point_kernel(c, Some(n), &sj);
-                for p in v {
+                // The receiver's point nearest the source: a large receiver beside a small,
+                // bright source (a ceiling over a lamp 8 cm below it) sees it strongly there
+                // and weakly at its centre and corners.
+                let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
+                for p in v.into_iter().chain([near]) {
                     f = f.max(Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj));
                 }
                 f
@@ -479,6 +490,16 @@ impl<'a> KernelCtx<'a> {
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
+        // Some samples that count see the source and some do not.
+        let (mut open, mut blocked) = (false, false);
+        let per_member = matches!(
+            sj,
+            End::Cluster {
+                orient: Some(_),
+                ..
+            }
+        );
+        let mut members = Vec::new();
         // Directional cluster receiver with oriented reception: its surfaces k with their
         // hand-out weights w_k (`facing_weight`) as a cumulative distribution of A_k·w_k; a
         // surface drawn from it contributes E(x)/w_k, whose mean is Σ A_k E_k / Σ A_k w_k, the
@@ -508,20 +529,22 @@ impl<'a> KernelCtx<'a> {
         if recv_cdf.as_ref().is_some_and(|c| c.is_empty()) {
             // No surface of the receiver faces the source: the hand-out delivers nothing.
             return KernelEval {
-                k: 0.0,
                 est,
-                kmin: 0.0,
-                kmax: 0.0,
-                rays: 0,
+                ..Default::default()
             };
         }
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
             // the form factor of the cluster's contents; an isotropic one stays at its centre.
+            let mut member = NO_MEMBER;
             let (y, ny) = match sj {
                 End::Surface { v, n, .. } => (sample_triangle(&v, sv[s][0], sv[s][1]), n),
-                End::Cluster { node, .. } => self.sample_cluster(node, sv[s][0], sv[s][1]),
+                End::Cluster { node, .. } => {
+                    let (y, n, k) = self.sample_cluster(node, sv[s][0], sv[s][1]);
+                    member = k;
+                    (y, n)
+                }
             };
             let mut src = sj;
             if let End::Cluster {
@@ -538,10 +561,20 @@ impl<'a> KernelCtx<'a> {
             // surface of a directional cluster drawn by hand-out weight (irradiance there over
             // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
             // centre, facing the source.
+            // What the shadow ray leaves out at each end: the surface its point lies on (a
+            // cluster end's other surfaces occlude like any other), or a whole cluster when the
+            // point is not on one of its surfaces.
+            let mut ex = ri.endpoint();
+            let ey = match sj {
+                End::Cluster { .. } if member != NO_MEMBER => {
+                    Endpoint::Surface(self.elems.elems[member as usize].tri)
+                }
+                _ => sj.endpoint(),
+            };
             let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
                 (End::Surface { v, n: nr, .. }, _) => {
                     let x = sample_triangle(&v, su[s][0], su[s][1]);
-                    (x, Self::point_kernel(x, Some(nr), &src), Some(nr))
+                    (x, self.sample_kernel(x, nr, &src, member), Some(nr))
                 }
                 (End::Cluster { .. }, Some(cdf)) => {
                     let total = cdf[cdf.len() - 1].1;
@@ -554,11 +587,15 @@ impl<'a> KernelCtx<'a> {
                     let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
                     let e = &self.elems.elems[id as usize];
                     let x = sample_triangle(&e.verts, u as f32, su[s][1]);
-                    let fx = Self::point_kernel(x, Some(e.normal), &src) / w;
+                    let fx = self.sample_kernel(x, e.normal, &src, member) / w;
+                    ex = Endpoint::Surface(e.tri);
                     (x, fx, Some(e.normal))
                 }
                 (End::Cluster { node, c, .. }, None) => {
-                    let (x, _) = self.sample_cluster(node, su[s][0], su[s][1]);
+                    let (x, _, k) = self.sample_cluster(node, su[s][0], su[s][1]);
+                    if k != NO_MEMBER {
+                        ex = Endpoint::Surface(self.elems.elems[k as usize].tri);
+                    }
                     if bounds {
                         // The kernel's spread over the receiving cluster.
                         let fb = Self::point_kernel(x, None, &src);
@@ -576,19 +613,35 @@ impl<'a> KernelCtx<'a> {
                 (End::Surface { v, .. }, Some(nr)) => {
                     sample_triangle_above(x, nr, &v, sv[s][0], sv[s][1]).unwrap_or(y)
                 }
+                (
+                    End::Cluster {
+                        orient: Some(_), ..
+                    },
+                    Some(nr),
+                ) if member != NO_MEMBER => {
+                    let v = self.elems.elems[member as usize].verts;
+                    sample_triangle_above(x, nr, &v, sv[s][1], sv[s][0]).unwrap_or(y)
+                }
                 _ => y,
             };
             let vis = if fx > 0.0 || bounds {
                 rays += 1;
-                self.segment(x, &ri, y, &sj)
+                self.segment(x, ex, y, ey)
             } else {
                 0.0
             };
+            if fx > 0.0 {
+                open |= vis > 0.0;
+                blocked |= vis < 1.0;
+            }
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
             fmin = fmin.min(fx);
             fmax = fmax.max(fx);
             sum += fx * vis;
+            if per_member {
+                members.push((member, (fx * vis / n as f64) as f32));
+            }
         }
         if bounds {
             // Corner points of a surface receiver widen the kernel range (no rays).
@@ -601,9 +654,12 @@ impl<'a> KernelCtx<'a> {
             }
         }
         let mut k = sum / n as f64;
-        if recv_cdf.is_some() {
+        if recv_cdf.is_some() && k > 1.0 {
             // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
-            k = k.min(1.0);
+            for m in &mut members {
+                m.1 /= k as f32;
+            }
+            k = 1.0;
         }
         if !fmin.is_finite() {
             fmin = 0.0;
@@ -614,6 +670,33 @@ impl<'a> KernelCtx<'a> {
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,
             rays,
+            mixed: open && blocked,
+            members,
+        }
+    }
+
+    /// Unoccluded kernel sample at receiver point `x` (normal `n`) for source `src` whose
+    /// sample point lies on surface element `member`. For a directional cluster source the
+    /// member is drawn with probability `A_k / A`, so `F(x → k) · A / A_k` with the analytic
+    /// point-to-polygon form factor is an unbiased estimate of the form factor of the
+    /// cluster's contents (a disk of the whole cluster's area at the sample point, the
+    /// previous estimate, under-counts near clusters several times: `A / (π r² + A)`).
+    fn sample_kernel(&self, x: Vec3, n: Vec3, src: &End, member: u32) -> f64 {
+        match *src {
+            End::Cluster {
+                area,
+                orient: Some(_),
+                ..
+            } if member != NO_MEMBER => {
+                let e = &self.elems.elems[member as usize];
+                let ak = e.area as f64;
+                if ak <= 0.0 {
+                    return 0.0;
+                }
+                let poly = e.verts.map(|p| p.as_dvec3());
+                point_to_polygon(x.as_dvec3(), n.as_dvec3(), &poly, e.normal.as_dvec3()) * area / ak
+            }
+            _ => Self::point_kernel(x, Some(n), src),
         }
     }
 
@@ -648,7 +731,7 @@ impl<'a> KernelCtx<'a> {
     /// Area-uniform point on the surfaces inside cluster `node` from two numbers in [0, 1):
     /// `u` picks a surface by descending the hierarchy with area-weighted choices (rescaled at
     /// each level, so stratification of `u` carries over), `(u, v)` then place the point on it.
-    fn sample_cluster(&self, node: u32, u: f32, v: f32) -> (Vec3, Vec3) {
+    fn sample_cluster(&self, node: u32, u: f32, v: f32) -> (Vec3, Vec3, u32) {
         let el = self.elems;
         let mut id = node;
         let mut u = u as f64;
@@ -656,9 +739,9 @@ impl<'a> KernelCtx<'a> {
             let e = &el.elems[id as usize];
             if e.kind == Kind::Surface || e.num_children == 0 {
                 return if e.kind == Kind::Surface {
-                    (sample_triangle(&e.verts, u as f32, v), e.normal)
+                    (sample_triangle(&e.verts, u as f32, v), e.normal, id)
                 } else {
-                    (e.centroid, Vec3::ZERO)
+                    (e.centroid, Vec3::ZERO, NO_MEMBER)
                 };
             }
             let target = u * e.area as f64;
@@ -676,24 +759,59 @@ impl<'a> KernelCtx<'a> {
                 acc += a;
             }
             if pick.0 == id {
-                return (e.centroid, Vec3::ZERO);
+                return (e.centroid, Vec3::ZERO, NO_MEMBER);
             }
             u = ((target - pick.1) / pick.2).clamp(0.0, 0.999_999_9);
             id = pick.0;
         }
     }
 
-    /// Visibility of the segment x → y: every surface but those of the two ends can occlude
-    /// (a cluster's own contents do not shadow its exchanges, its neighbours' do).
-    fn segment(&self, x: Vec3, rx: &End, y: Vec3, sy: &End) -> f64 {
-        self.vis
-            .transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, rx.endpoint(), sy.endpoint())
+    /// Visibility of the segment x → y: every surface but the ends `a` and `b` can occlude.
+    fn segment(&self, x: Vec3, a: Endpoint, y: Vec3, b: Endpoint) -> f64 {
+        self.vis.transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, a, b)
     }
 }
+
+/// [`KernelCtx::sample_cluster`] found no surface.
+const NO_MEMBER: u32 = u32::MAX;
 
 /// Shadow segments start and end this fraction of their length from their end points: the
 /// ends' own surfaces are left out by id, so this only absorbs rounding of the sample points.
 const SEG_EPS: f32 = 1e-6;
+
+/// The point of triangle `v` nearest to `p` (Ericson, *Real-Time Collision Detection* 5.1.5).
+fn closest_on_triangle(v: &[Vec3; 3], p: Vec3) -> Vec3 {
+    let [a, b, c] = *v;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
 
 /// Bounding sphere of a link end around its centroid: (centre, radius).
 fn end_sphere(e: &End) -> (DVec3, f64) {

@@ -13,7 +13,17 @@ pub struct Link {
     pub k: f32,
     /// Oracle quantity per unit source radiosity: `F̃` (bf) or `K_max − K_min` (error).
     pub est: f32,
+    /// First of the link's samples in [`LinkSet::samples`] (directional cluster sources), or
+    /// [`NO_SAMPLES`]: the receiver then gathers `k · B_src`.
+    pub samples: u32,
 }
+
+/// [`Link::samples`] of a link that gathers `k · B_src`.
+pub const NO_SAMPLES: u32 = u32::MAX;
+
+/// One sample of a directional cluster source: the surface element its point lies on and its
+/// share of the link's kernel.
+pub type Sample = (u32, f32);
 
 impl Link {
     /// A link whose kernel is not evaluated yet.
@@ -23,6 +33,7 @@ impl Link {
             src,
             k: f32::NAN,
             est: f32::NAN,
+            samples: NO_SAMPLES,
         }
     }
 
@@ -65,11 +76,38 @@ pub struct LinkSet {
     pub links: Vec<Link>,
     /// `(receiver, start, end)` ranges into `links`, receivers ascending.
     pub groups: Vec<(u32, u32, u32)>,
+    /// Samples of the links with [`Link::samples`], `per_link` each.
+    pub samples: Vec<Sample>,
+    pub per_link: u32,
 }
 
 impl LinkSet {
-    /// Sort `links` by receiver and build the groups.
-    pub fn from_links(mut links: Vec<Link>) -> LinkSet {
+    /// Irradiance per unit of the radiosities `b` that link `l` gathers.
+    #[inline]
+    pub fn gather(&self, l: &Link, b: &[glam::DVec3]) -> glam::DVec3 {
+        if l.samples == NO_SAMPLES {
+            return b[l.src as usize] * l.k as f64;
+        }
+        let s = l.samples as usize;
+        self.samples[s..s + self.per_link as usize]
+            .iter()
+            .filter(|m| m.0 != u32::MAX)
+            .map(|&(m, w)| b[m as usize] * w as f64)
+            .sum()
+    }
+
+    /// Sort `links` by receiver and build the groups; `samples` holds the samples the links
+    /// refer to (`per_link` each), compacted here to those of the links kept.
+    pub fn from_links(mut links: Vec<Link>, samples: &[Sample], per_link: u32) -> LinkSet {
+        let pl = per_link as usize;
+        let mut kept = Vec::new();
+        for l in links.iter_mut() {
+            if l.samples != NO_SAMPLES {
+                let s = l.samples as usize;
+                l.samples = kept.len() as u32;
+                kept.extend_from_slice(&samples[s..s + pl]);
+            }
+        }
         links.sort_by_key(|l| l.recv);
         let mut groups = Vec::new();
         let mut s = 0usize;
@@ -82,7 +120,12 @@ impl LinkSet {
             groups.push((r, s as u32, e as u32));
             s = e;
         }
-        LinkSet { links, groups }
+        LinkSet {
+            links,
+            groups,
+            samples: kept,
+            per_link,
+        }
     }
 
     /// Number of links.
@@ -97,6 +140,8 @@ impl LinkSet {
 
     /// Bytes used.
     pub fn memory_bytes(&self) -> usize {
-        self.links.capacity() * std::mem::size_of::<Link>() + self.groups.capacity() * 12
+        self.links.capacity() * std::mem::size_of::<Link>()
+            + self.groups.capacity() * 12
+            + self.samples.capacity() * std::mem::size_of::<Sample>()
     }
 }

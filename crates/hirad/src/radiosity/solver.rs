@@ -12,11 +12,10 @@
 //! again whenever the total power has moved by more than [`REFINE_DRIFT`] since, and once more
 //! when the change of total power falls below `tol_converge` (the solve has converged when an
 //! iteration that began with a refinement pass changes the power by less than that); the other
-//! iterations only gather and push-pull. Each leaf's kernels (its own links, its ancestors' and
-//! its clusters' weighted by the reception model) times its reflectance may not exceed
-//! [`GAIN_MAX`], which keeps the iteration convergent; the leaves this cap touches and the
-//! power it removes are counted in the statistics and warned about (a kernel error to find,
-//! not a feature).
+//! iterations only gather and push-pull. Nothing caps a leaf's gain `ρ · Σ K`: the leaves whose
+//! gain exceeds 1 are counted (`leaves_gain_above_one`), and a solve whose total power passes
+//! what any closed scene can hold, `(Φ_emitted + Φ_direct) / (1 − ρ_max)`, is diverging and
+//! stops with an error instead of returning a wrong answer.
 //!
 //! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
 //! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
@@ -28,7 +27,7 @@
 use super::config::{ClusterEmission, Oracle, Reception, SolverConfig};
 use super::element::{facing_weight, Elements, Kind};
 use super::formfactor::{sample_triangle, KernelCtx};
-use super::link::{Link, LinkKind, LinkSet};
+use super::link::{Link, LinkKind, LinkSet, Sample};
 use super::oracle::{self, Action};
 use super::stats::{self, IterStat, SolveStats};
 use super::visibility::Visibility;
@@ -47,11 +46,9 @@ use std::time::Instant;
 /// convergence; in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
 
-/// Largest gain `ρ · Σ K` (largest channel of ρ) of a leaf: every row of the iteration matrix
-/// then sums to less than 1, so the gather iteration converges whatever the kernel estimates.
-/// Physically `Σ_j F_ij ≤ 1`, so only leaves whose estimated kernels sum above `0.95 / ρ`
-/// are touched (none in a furnace of ρ = 0.5 unless the estimates are off by 90%).
-const GAIN_MAX: f64 = 0.95;
+/// What refinement decides for a link: the action, the link (evaluated when kept), the rays
+/// cast, and the samples of a kept link from a directional cluster.
+type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
 
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
@@ -162,10 +159,8 @@ struct RootResult {
     gathered: f64,
     gathered_cluster: f64,
     direct: f64,
-    /// Leaves whose kernel sum exceeded 1.
-    clamped: u64,
-    /// Power (W, channel sum) the gain cap removed from them.
-    clamped_power: f64,
+    /// Leaves whose gain `ρ · Σ K` exceeds 1.
+    gain_above_one: u64,
 }
 
 struct Solver<'a> {
@@ -193,6 +188,8 @@ struct Solver<'a> {
     k_sum: Vec<f64>,
     root_irr: Vec<DVec3>,
     has_sun_sky: bool,
+    /// Largest total power any converged solution can have (see the module docs).
+    power_bound: f64,
     stats: SolveStats,
 }
 
@@ -272,6 +269,7 @@ impl<'a> Solver<'a> {
             entries: Vec::new(),
             root_irr: Vec::new(),
             has_sun_sky,
+            power_bound: f64::INFINITY,
             stats,
         };
         if has_sun_sky {
@@ -284,6 +282,17 @@ impl<'a> Solver<'a> {
             }
         }
         s.pull_clusters();
+        // Power bound: every bounce keeps at most ρ_max of what reaches a surface.
+        let rho_max =
+            s.el.roots()
+                .map(|r| s.el.elems[r as usize].rho.max_element())
+                .fold(0.0f32, f32::max) as f64;
+        let direct: f64 =
+            s.el.roots()
+                .map(|r| s.el.direct[r as usize].element_sum() * s.el.elems[r as usize].area as f64)
+                .sum();
+        let emitted = scene.emitted_power().element_sum();
+        s.power_bound = 1.05 * (emitted + direct) / (1.0 - rho_max).max(1e-6);
         s
     }
 
@@ -327,6 +336,15 @@ impl<'a> Solver<'a> {
             self.push_pull();
             self.stats.time.push_pull += t.elapsed().as_secs_f64();
             let p = self.total_power();
+            if p > self.power_bound {
+                progress.finish();
+                return Err(Error::Config(format!(
+                    "the solve diverges: total power {p:.4e} W after iteration {it} exceeds \
+                     {:.4e} W, the most (emitted + direct) / (1 - max reflectance) allows; \
+                     some kernels over-estimate (leaves with gain above 1: {})",
+                    self.power_bound, self.stats.leaves_gain_above_one
+                )));
+            }
             let rel = (p - prev).abs() / p.abs().max(1e-300);
             prev = p;
             self.stats.history.push(IterStat {
@@ -395,10 +413,12 @@ impl<'a> Solver<'a> {
 
     /// One refinement sweep over every link (the root self-link on the first iteration).
     fn refine(&mut self, first: bool, cancel: &AtomicBool) -> Result<()> {
-        let mut frontier: Vec<Link> = if first {
-            vec![Link::new(0, 0)]
+        let per_link = self.cfg.shadow_rays.max(1);
+        let (mut frontier, mut samples): (Vec<Link>, Vec<Sample>) = if first {
+            (vec![Link::new(0, 0)], Vec::new())
         } else {
-            std::mem::take(&mut self.set).links
+            let set = std::mem::take(&mut self.set);
+            (set.links, set.samples)
         };
         let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
         let oracle_kind = self.cfg.refine;
@@ -407,7 +427,7 @@ impl<'a> Solver<'a> {
                 return Err(Error::Interrupted);
             }
             let allow = !self.budget_hit;
-            let decided: Vec<(Action, Link, u64)> = {
+            let decided: Vec<Decided> = {
                 let ctx = self.ctx();
                 let this = &*self;
                 frontier
@@ -418,7 +438,7 @@ impl<'a> Solver<'a> {
             // Growth of this pass.
             let mut new_links = 0usize;
             let mut to_split: Vec<u32> = Vec::new();
-            for (a, l, _) in &decided {
+            for (a, l, _, _) in &decided {
                 let nk = |id: u32| -> usize {
                     let e = &self.el.elems[id as usize];
                     if e.kind == Kind::Surface {
@@ -448,7 +468,7 @@ impl<'a> Solver<'a> {
             to_split.dedup();
             let projected = self.memory_now(done.len() + frontier.len() + new_links)
                 + (to_split.len() * 4 * (Elements::BYTES_PER_ELEMENT + 8)) as u64;
-            for (_, _, r) in &decided {
+            for (_, _, r, _) in &decided {
                 self.rays += r;
             }
             if let Some(budget) = self.cfg.max_memory {
@@ -480,9 +500,15 @@ impl<'a> Solver<'a> {
                 }
             }
             let mut next = Vec::with_capacity(new_links);
-            for (a, l, _) in decided {
+            for (a, mut l, _, m) in decided {
                 match a {
-                    Action::Keep => done.push(l),
+                    Action::Keep => {
+                        if let Some(m) = m {
+                            l.samples = samples.len() as u32;
+                            samples.extend_from_slice(&m);
+                        }
+                        done.push(l)
+                    }
                     Action::Drop => {}
                     Action::SplitRecv => {
                         for c in self.el.children(l.recv) {
@@ -509,7 +535,7 @@ impl<'a> Solver<'a> {
             self.note_peak();
             done = std::mem::take(&mut self.links);
         }
-        self.set = LinkSet::from_links(done);
+        self.set = LinkSet::from_links(done, &samples, per_link);
         self.note_peak();
         Ok(())
     }
@@ -527,24 +553,25 @@ impl<'a> Solver<'a> {
     }
 
     /// Decide what to do with one link; kept links come back evaluated.
-    fn decide(&self, ctx: &KernelCtx, l: &Link, allow: bool, ok: Oracle) -> (Action, Link, u64) {
+    fn decide(&self, ctx: &KernelCtx, l: &Link, allow: bool, ok: Oracle) -> Decided {
         let (ri, sj) = (l.recv, l.src);
         let r = &self.el.elems[ri as usize];
         let s = &self.el.elems[sj as usize];
         if ri == sj {
             return if r.kind == Kind::Cluster && r.num_children > 0 {
-                (Action::SplitBoth, *l, 0)
+                (Action::SplitBoth, *l, 0, None)
             } else {
-                (Action::Drop, *l, 0)
+                (Action::Drop, *l, 0, None)
             };
         }
         let mut link = *l;
         let mut rays = 0;
         let mut eval = None;
         let mut est_raw = None;
+        let mut members = None;
         if !link.evaluated() {
             if ctx.is_zero(ri, sj) {
-                return (Action::Drop, link, 0);
+                return (Action::Drop, link, 0, None);
             }
             // Error bound of the isotropic model of a cluster source, per unit F̃.
             let g = if self.cfg.anisotropy_refine {
@@ -576,7 +603,7 @@ impl<'a> Solver<'a> {
             )
         {
             if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                return (a, link, rays);
+                return (a, link, rays, None);
             }
         }
         if !link.evaluated() {
@@ -589,6 +616,22 @@ impl<'a> Solver<'a> {
                 }
             };
             link.k = ev.k as f32;
+            if !ev.members.is_empty() {
+                members = Some(ev.members.into_boxed_slice());
+            }
+            // A cluster end hands what it receives to, or emits with the radiosity of, all of
+            // its surfaces: when some samples see the other end and some do not, that is
+            // wrong for some of them by up to the whole transfer, whatever ε says (light
+            // handed into a closed box, cavity gain then multiplies it). Refine such a link
+            // whenever it carries energy.
+            if ev.mixed && (r.kind == Kind::Cluster || s.kind == Kind::Cluster) {
+                link.est = f32::INFINITY;
+                if allow && self.el.b[sj as usize].max_element() > 0.0 {
+                    if let Some(a) = oracle::choose_split(r, s, self.min_area) {
+                        return (a, *l, rays, None);
+                    }
+                }
+            }
             // The estimate must bound what the link carries: where the sampled kernel is
             // larger (surfaces of a cluster much nearer the other end than its centre, or in
             // front of a plane its centre lies behind), judge and keep that instead.
@@ -604,18 +647,19 @@ impl<'a> Solver<'a> {
                     )
                 {
                     if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                        return (a, *l, rays);
+                        return (a, *l, rays, None);
                     }
                 }
             }
         }
-        (Action::Keep, link, rays)
+        (Action::Keep, link, rays, members)
     }
 
     /// Gather over every link, per receiver.
     fn gather(&mut self) {
         let el = &self.el;
-        let links = &self.set.links;
+        let set = &self.set;
+        let links = &set.links;
         let res: Vec<Gathered> = self
             .set
             .groups
@@ -627,8 +671,7 @@ impl<'a> Solver<'a> {
                     ..Default::default()
                 };
                 for l in &links[a as usize..b as usize] {
-                    let bs = el.b[l.src as usize];
-                    let contrib = bs * l.k as f64;
+                    let contrib = set.gather(l, &el.b);
                     let se = &el.elems[l.src as usize];
                     if re.kind == Kind::Cluster {
                         let d = (se.centroid - re.centroid).normalize_or_zero();
@@ -745,8 +788,7 @@ impl<'a> Solver<'a> {
             })
             .collect();
         let mut pw = super::stats::PowerStats::default();
-        let mut clamped = 0u64;
-        let mut clamped_power = 0.0f64;
+        let mut gain_above_one = 0u64;
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
             for (id, b) in res.updates {
@@ -756,8 +798,7 @@ impl<'a> Solver<'a> {
             pw.absorbed += res.absorbed;
             pw.gathered += res.gathered;
             pw.gathered_cluster += res.gathered_cluster;
-            clamped += res.clamped;
-            clamped_power += res.clamped_power;
+            gain_above_one += res.gain_above_one;
             pw.emitted += res.direct;
         }
         for r in roots {
@@ -768,8 +809,7 @@ impl<'a> Solver<'a> {
         pw.radiosity = self.total_power();
         pw.escaping = pw.radiosity - pw.gathered;
         self.stats.power = pw;
-        self.stats.kernel_clamped_leaves = clamped;
-        self.stats.kernel_clamped_power = clamped_power;
+        self.stats.leaves_gain_above_one = gain_above_one;
     }
 
     /// Cluster radiosity = area average of the children, bottom-up.
@@ -888,17 +928,6 @@ impl<'a> Solver<'a> {
             0.0
         };
         st.rays = self.rays;
-        if st.kernel_clamped_leaves > 0 {
-            let msg = format!(
-                "{} leaves had kernels summing above {GAIN_MAX} / reflectance: the gain cap \
-                 removed {:.4e} W ({:.2}% of the emitted power) from their irradiance",
-                st.kernel_clamped_leaves,
-                st.kernel_clamped_power,
-                100.0 * st.kernel_clamped_power / st.power.emitted.max(1e-300)
-            );
-            tracing::warn!("{msg}");
-            st.warnings.push(msg);
-        }
         st.memory.peak_counted_bytes = self.peak;
         st.memory.element_bytes = (self.el.memory_bytes() + self.h_cluster.capacity() * 8) as u64;
         st.memory.link_bytes = self.set.memory_bytes() as u64;
@@ -917,10 +946,7 @@ impl<'a> Solver<'a> {
 
 /// Push-pull below surface element `id` with irradiance `down` from above; returns its B.
 ///
-/// `down` carries the irradiance and the kernel sum gathered above the element. A leaf's form
-/// factors sum to at most 1; estimated kernels (near-field cluster estimates, sampling noise)
-/// can sum to more, and with reflectances close to 1 the iteration then diverges. A leaf whose
-/// gain `ρ · Σ K` exceeds [`GAIN_MAX`] has its irradiance scaled down to that gain.
+/// `down` carries the irradiance and the kernel sum gathered above the element.
 fn push_rec(
     el: &Elements,
     (h_cluster, k_sum): (&[f64], &[f64]),
@@ -933,18 +959,10 @@ fn push_rec(
     let own = el.h[id as usize];
     out.gathered += area * own.element_sum();
     out.gathered_cluster += area * h_cluster[id as usize];
-    let mut h = down.0 + own;
+    let h = down.0 + own;
     let k = down.1 + k_sum[id as usize];
     if e.num_children == 0 {
-        let gain = e.rho.max_element() as f64 * k;
-        if gain > GAIN_MAX {
-            out.clamped += 1;
-            let f = GAIN_MAX / gain;
-            let removed = area * (h * (1.0 - f)).element_sum();
-            out.gathered -= removed;
-            out.clamped_power += removed;
-            h *= f;
-        }
+        out.gain_above_one += (e.rho.max_element() as f64 * k > 1.0) as u64;
         let d = el.direct[id as usize];
         let inc = h + d;
         let rho = e.rho.as_dvec3();

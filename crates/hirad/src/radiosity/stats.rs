@@ -102,13 +102,10 @@ pub struct SolveStats {
     pub no_light: bool,
     pub warnings: Vec<String>,
     /// Leaves whose gain `ρ · Σ K` (reflectance times the sum of their link kernels) exceeded
-    /// 0.95 in the last gather: their irradiance was scaled down to that gain.
+    /// 1 in the last gather (form factors of a leaf sum to at most 1: these kernels
+    /// over-estimate; nothing is clamped).
     #[serde(default)]
-    pub kernel_clamped_leaves: u64,
-    /// Irradiance power (W, channel sum) the gain cap removed from those leaves in the last
-    /// push-pull.
-    #[serde(default)]
-    pub kernel_clamped_power: f64,
+    pub leaves_gain_above_one: u64,
     /// Refinement passes run (refinement is repeated while the radiosity moves).
     #[serde(default)]
     pub refinements: u32,
