@@ -619,14 +619,23 @@ impl<'a> Solver<'a> {
             if !ev.members.is_empty() {
                 members = Some(ev.members.into_boxed_slice());
             }
-            // A cluster end hands what it receives to, or emits with the radiosity of, all of
-            // its surfaces: when some samples see the other end and some do not, that is
-            // wrong for some of them by up to the whole transfer, whatever ε says (light
-            // handed into a closed box, cavity gain then multiplies it). Refine such a link
-            // whenever it carries energy.
-            if ev.mixed && (r.kind == Kind::Cluster || s.kind == Kind::Cluster) {
-                link.est = f32::INFINITY;
-                if allow && self.el.b[sj as usize].max_element() > 0.0 {
+            // A cluster receiver hands what it receives to all of its surfaces that face the
+            // source: when some samples see the source and some do not, some surfaces get up
+            // to the whole transfer wrongly, and interreflection among the cluster's surfaces
+            // multiplies that by up to ρ / (1 − ρ) (a closed thin box of ρ = 0.93: 13×).
+            // Judge such a link on its largest sampled kernel times that gain.
+            if ev.mixed && r.kind == Kind::Cluster {
+                let rho = (r.rho.max_element() as f64).min(0.999);
+                link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
+                if allow
+                    && oracle::wants_refine(
+                        ok,
+                        self.eps,
+                        link.est as f64,
+                        self.el.b[sj as usize],
+                        r.rho.as_dvec3(),
+                    )
+                {
                     if let Some(a) = oracle::choose_split(r, s, self.min_area) {
                         return (a, *l, rays, None);
                     }
