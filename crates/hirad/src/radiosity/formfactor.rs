@@ -561,12 +561,15 @@ impl<'a> KernelCtx<'a> {
             // surface of a directional cluster drawn by hand-out weight (irradiance there over
             // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
             // centre, facing the source.
-            // What the shadow ray leaves out at each end: the surface its point lies on (a
-            // cluster end's other surfaces occlude like any other), or a whole cluster when the
-            // point is not on one of its surfaces.
+            // What the shadow ray leaves out at each end: the surface its point lies on when
+            // a directional cluster is sampled surface by surface (its other surfaces occlude
+            // like any other), a whole cluster when the isotropic model stands for it (whose
+            // point emitter or receiver has no inside, as in Sillion's model).
             let mut ex = ri.endpoint();
             let ey = match sj {
-                End::Cluster { .. } if member != NO_MEMBER => {
+                End::Cluster {
+                    orient: Some(_), ..
+                } if member != NO_MEMBER => {
                     Endpoint::Surface(self.elems.elems[member as usize].tri)
                 }
                 _ => sj.endpoint(),
@@ -592,10 +595,7 @@ impl<'a> KernelCtx<'a> {
                     (x, fx, Some(e.normal))
                 }
                 (End::Cluster { node, c, .. }, None) => {
-                    let (x, _, k) = self.sample_cluster(node, su[s][0], su[s][1]);
-                    if k != NO_MEMBER {
-                        ex = Endpoint::Surface(self.elems.elems[k as usize].tri);
-                    }
+                    let (x, _, _) = self.sample_cluster(node, su[s][0], su[s][1]);
                     if bounds {
                         // The kernel's spread over the receiving cluster.
                         let fb = Self::point_kernel(x, None, &src);
