@@ -912,6 +912,45 @@ mod tests {
     }
 
     #[test]
+    fn closest_on_triangle_matches_a_dense_search() {
+        let v = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.5, 1.5, 0.0),
+        ];
+        let mut rng = SplitMix64::new(5);
+        let grid: Vec<Vec3> = (0..=200)
+            .flat_map(|i| (0..=200 - i).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                let (a, b) = (i as f32 / 200.0, j as f32 / 200.0);
+                v[0] * (1.0 - a - b) + v[1] * a + v[2] * b
+            })
+            .collect();
+        for _ in 0..200 {
+            // Points in every Voronoi region: around, beside and above the triangle.
+            let p = Vec3::new(
+                rng.next_f32() * 5.0 - 1.5,
+                rng.next_f32() * 4.0 - 1.5,
+                rng.next_f32() * 2.0 - 1.0,
+            );
+            let q = closest_on_triangle(&v, p);
+            let best = grid
+                .iter()
+                .map(|g| g.distance(p))
+                .fold(f32::INFINITY, f32::min);
+            assert!(
+                q.distance(p) <= best + 1e-5,
+                "{p:?}: {q:?} at {} > {best}",
+                q.distance(p)
+            );
+            assert!(
+                q.distance(p) >= best - 0.02,
+                "{p:?}: {q:?} not on the triangle"
+            );
+        }
+    }
+
+    #[test]
     fn stratified_samples_cover_strata() {
         let mut rng = SplitMix64::new(3);
         let mut s = Vec::new();

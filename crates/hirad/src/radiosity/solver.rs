@@ -593,18 +593,22 @@ impl<'a> Solver<'a> {
                 }
             }
         }
-        if allow
-            && oracle::wants_refine(
-                ok,
-                self.eps,
-                link.est as f64,
-                self.el.b[sj as usize],
-                r.rho.as_dvec3(),
-            )
-        {
-            if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                return (a, link, rays, None);
-            }
+        // The split the oracle asks for when it judges the link on `est`, if either end can be
+        // split.
+        let split = |est: f64| {
+            (allow
+                && oracle::wants_refine(
+                    ok,
+                    self.eps,
+                    est,
+                    self.el.b[sj as usize],
+                    r.rho.as_dvec3(),
+                ))
+            .then(|| oracle::choose_split(r, s, self.min_area))
+            .flatten()
+        };
+        if let Some(a) = split(link.est as f64) {
+            return (a, link, rays, None);
         }
         if !link.evaluated() {
             let ev = match eval {
@@ -627,18 +631,8 @@ impl<'a> Solver<'a> {
             if ev.mixed && r.kind == Kind::Cluster {
                 let rho = (r.rho.max_element() as f64).min(0.999);
                 link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
-                if allow
-                    && oracle::wants_refine(
-                        ok,
-                        self.eps,
-                        link.est as f64,
-                        self.el.b[sj as usize],
-                        r.rho.as_dvec3(),
-                    )
-                {
-                    if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                        return (a, *l, rays, None);
-                    }
+                if let Some(a) = split(link.est as f64) {
+                    return (a, *l, rays, None);
                 }
             }
             // The estimate must bound what the link carries: where the sampled kernel is
@@ -646,18 +640,8 @@ impl<'a> Solver<'a> {
             // front of a plane its centre lies behind), judge and keep that instead.
             if ev.k > link.est as f64 {
                 link.est = ev.k as f32;
-                if allow
-                    && oracle::wants_refine(
-                        ok,
-                        self.eps,
-                        ev.k,
-                        self.el.b[sj as usize],
-                        r.rho.as_dvec3(),
-                    )
-                {
-                    if let Some(a) = oracle::choose_split(r, s, self.min_area) {
-                        return (a, *l, rays, None);
-                    }
+                if let Some(a) = split(ev.k) {
+                    return (a, *l, rays, None);
                 }
             }
         }
