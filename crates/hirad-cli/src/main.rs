@@ -60,6 +60,8 @@ enum Command {
     Reference(cmd::reference::Args),
     /// The paper's experiments end to end: statistics, ray casting, ε sweeps, plots, report.
     Study(cmd::study::Args),
+    /// Solve, render from the view and compare with two path-traced references.
+    Validate(cmd::validate::Args),
 }
 
 fn main() {
@@ -83,6 +85,7 @@ fn main() {
         Command::Render(a) => cmd::render::run(a, &cli.global),
         Command::Diff(a) => cmd::diff::run(a, &cli.global),
         Command::Reference(a) => cmd::reference::run(a, &cli.global),
+        Command::Validate(a) => cmd::validate::run(a, &cli.global),
         Command::Study(a) => cmd::study::run(a, &cli.global),
     };
     if let Err(e) = r {
