@@ -10,16 +10,18 @@
 //!   projected area `A/4` in every direction from its centre, so its kernel towards a point is
 //!   the disk estimate with `cos θ_j = 1` and area `A/4`. In a closed scene every cluster lies on
 //!   the enclosure and sends half of that to where no surface is: furnaces come out 20–40% dark.
-//! - directional (default): each sample point is drawn on the cluster's surfaces (area-uniform)
-//!   and carries the projected area `A cos θ_y` of the surface it lies on, so the kernel is a
-//!   Monte Carlo estimate of the form factor of the cluster's contents; the oracle's estimate
-//!   uses the order-2 spherical-harmonic projected area (`ClusterOrient::projected_area`).
+//! - directional (default): each sample picks a surface k of the cluster with probability
+//!   `A_k / A` and takes the analytic form factor to it times `A / A_k`, a Monte Carlo estimate
+//!   of the form factor of the cluster's contents; the link keeps each sample's surface and
+//!   share, so the gather takes the sampled surfaces' own radiosity
+//!   ([`KernelEval::members`]). The oracle's estimate uses the order-2 spherical-harmonic
+//!   projected area (`ClusterOrient::projected_area`).
 //!
 //! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
 //! centre, facing the source (`spec/radiosity.md`); a directional cluster with oriented
 //! reception samples its surfaces in proportion to their hand-out weights (see
 //! [`KernelCtx::evaluate_with`]). Shadow rays of cluster ends start from points on their
-//! surfaces.
+//! surfaces and leave out only those surfaces (directional) or the whole cluster (isotropic).
 
 use super::config::{ClusterEmission, Reception};
 use super::element::{ClusterOrient, Elements, Kind};
@@ -773,7 +775,7 @@ impl<'a> KernelCtx<'a> {
 }
 
 /// [`KernelCtx::sample_cluster`] found no surface.
-const NO_MEMBER: u32 = u32::MAX;
+const NO_MEMBER: u32 = super::link::NO_MEMBER;
 
 /// Shadow segments start and end this fraction of their length from their end points: the
 /// ends' own surfaces are left out by id, so this only absorbs rounding of the sample points.

@@ -21,6 +21,9 @@ pub struct Link {
 /// [`Link::samples`] of a link that gathers `k · B_src`.
 pub const NO_SAMPLES: u32 = u32::MAX;
 
+/// [`Sample`] surface of a sample that found no surface (an empty cluster).
+pub const NO_MEMBER: u32 = u32::MAX;
+
 /// One sample of a directional cluster source: the surface element its point lies on and its
 /// share of the link's kernel.
 pub type Sample = (u32, f32);
@@ -91,7 +94,7 @@ impl LinkSet {
         let s = l.samples as usize;
         self.samples[s..s + self.per_link as usize]
             .iter()
-            .filter(|m| m.0 != u32::MAX)
+            .filter(|m| m.0 != NO_MEMBER)
             .map(|&(m, w)| b[m as usize] * w as f64)
             .sum()
     }
