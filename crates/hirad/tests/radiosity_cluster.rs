@@ -286,6 +286,8 @@ fn projected_area(el: &hirad::radiosity::element::Elements, c: u32, d: Vec3) -> 
         .sum()
 }
 
+static COVERS_NONE: hirad::radiosity::overlap::Covers = hirad::radiosity::overlap::Covers::EMPTY;
+
 /// Kernel context of the isotropic model with one shadow ray (visibility is off in these tests).
 fn isotropic_ctx<'a>(
     el: &'a hirad::radiosity::element::Elements,
@@ -296,6 +298,7 @@ fn isotropic_ctx<'a>(
         elems: el,
         tree,
         vis,
+        covers: &COVERS_NONE,
         n_rays: 1,
         seed: 1,
         emission: ClusterEmission::Isotropic,

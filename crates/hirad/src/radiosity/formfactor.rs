@@ -25,6 +25,7 @@
 
 use super::config::{ClusterEmission, Reception};
 use super::element::{ClusterOrient, Elements, Kind};
+use super::overlap::Covers;
 use super::visibility::Visibility;
 use crate::cluster::ClusterTree;
 use crate::ray::volume::Endpoint;
@@ -237,6 +238,8 @@ pub struct KernelCtx<'a> {
     pub elems: &'a Elements,
     pub tree: &'a ClusterTree,
     pub vis: &'a Visibility<'a>,
+    /// Coplanar overlaps: covered points neither receive nor emit.
+    pub covers: &'a Covers,
     /// Shadow rays per link.
     pub n_rays: usize,
     /// Seed of the run.
@@ -488,6 +491,12 @@ impl<'a> KernelCtx<'a> {
         stratified_2d(n, &mut rng, &mut su);
         stratified_2d(n, &mut rng, &mut sv);
         let est = est.unwrap_or_else(|| self.estimate(i, j));
+        if let (End::Surface { .. }, End::Surface { .. }) = (ri, sj) {
+            let m = near_field_points(&ri, &sj, n);
+            if m > n {
+                return self.near_field(&ri, &sj, m, n, est, &mut rng);
+            }
+        }
         let mut sum = 0.0;
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
@@ -535,6 +544,7 @@ impl<'a> KernelCtx<'a> {
                 ..Default::default()
             };
         }
+        let mut n_open = 0usize;
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -626,9 +636,22 @@ impl<'a> KernelCtx<'a> {
                 }
                 _ => y,
             };
+            // A covered receiver point is not part of the receiver: the kernel is the mean
+            // over its open points. A covered source point emits nothing.
+            if self.covered(ex, x) {
+                if per_member {
+                    members.push((NO_MEMBER, 0.0));
+                }
+                continue;
+            }
+            n_open += 1;
             let vis = if fx > 0.0 || bounds {
                 rays += 1;
-                self.segment(x, ex, y, ey)
+                if self.covered(ey, y) {
+                    0.0
+                } else {
+                    self.segment(x, ex, y, ey)
+                }
             } else {
                 0.0
             };
@@ -642,7 +665,7 @@ impl<'a> KernelCtx<'a> {
             fmax = fmax.max(fx);
             sum += fx * vis;
             if per_member {
-                members.push((member, (fx * vis / n as f64) as f32));
+                members.push((member, (fx * vis) as f32));
             }
         }
         if bounds {
@@ -655,7 +678,11 @@ impl<'a> KernelCtx<'a> {
                 }
             }
         }
-        let mut k = sum / n as f64;
+        let n_open = n_open.max(1) as f64;
+        for m in &mut members {
+            m.1 = (m.1 as f64 / n_open) as f32;
+        }
+        let mut k = sum / n_open;
         if recv_cdf.is_some() && k > 1.0 {
             // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
             for m in &mut members {
@@ -674,6 +701,82 @@ impl<'a> KernelCtx<'a> {
             rays,
             mixed: open && blocked,
             members,
+        }
+    }
+
+    /// Kernel of a surface receiver close to a surface source (closer than its own size): the
+    /// unoccluded form factor varies over the receiver on the scale of the gap, so it is
+    /// integrated from `m` stratified points (analytic point-to-polygon, no rays), and the `n`
+    /// shadow rays start from points drawn among them in proportion to their form factor: the
+    /// kernel is `F_u ×` the visible share of the form factor.
+    fn near_field(
+        &self,
+        ri: &End,
+        sj: &End,
+        m: usize,
+        n: usize,
+        est: f64,
+        rng: &mut SplitMix64,
+    ) -> KernelEval {
+        let (End::Surface { v: vr, n: nr, .. }, End::Surface { v: vs, .. }) = (*ri, *sj) else {
+            unreachable!("near_field takes two surfaces")
+        };
+        let mut pts = Vec::with_capacity(m);
+        stratified_2d(m, rng, &mut pts);
+        let xs: Vec<Vec3> = pts
+            .iter()
+            .map(|u| sample_triangle(&vr, u[0], u[1]))
+            .collect();
+        let mut cdf = Vec::with_capacity(m);
+        let (mut acc, mut fmin, mut fmax) = (0.0f64, f64::INFINITY, 0.0f64);
+        let ex = ri.endpoint();
+        let mut n_open = 0usize;
+        for &x in &xs {
+            // Covered points are not part of the receiver (zero weight in the cdf below).
+            let f = if self.covered(ex, x) {
+                0.0
+            } else {
+                n_open += 1;
+                Self::point_kernel(x, Some(nr), sj)
+            };
+            fmin = fmin.min(f);
+            fmax = fmax.max(f);
+            acc += f;
+            cdf.push(acc);
+        }
+        if acc <= 0.0 {
+            return KernelEval {
+                est,
+                ..Default::default()
+            };
+        }
+        let mut sv = Vec::with_capacity(n);
+        stratified_2d(n, rng, &mut sv);
+        let ey = sj.endpoint();
+        let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
+        for (s, u) in sv.iter().enumerate() {
+            // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
+            let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
+            let x = xs[cdf.partition_point(|&c| c <= target).min(m - 1)];
+            let y = sample_triangle_above(x, nr, &vs, u[0], u[1])
+                .unwrap_or_else(|| sample_triangle(&vs, u[0], u[1]));
+            let vis = if self.covered(ey, y) {
+                0.0
+            } else {
+                self.segment(x, ex, y, ey)
+            };
+            vis_sum += vis;
+            vmin = vmin.min(vis);
+            vmax = vmax.max(vis);
+        }
+        KernelEval {
+            k: acc / n_open.max(1) as f64 * vis_sum / n as f64,
+            est,
+            kmin: fmin * vmin,
+            kmax: fmax.max(est) * vmax,
+            rays: n as u64,
+            mixed: vmin < 1.0 && vmax > 0.0,
+            members: Vec::new(),
         }
     }
 
@@ -768,6 +871,15 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
+    /// Point `p` of a surface end lies under a coplanar triangle that owns it ([`Covers`]).
+    #[inline]
+    fn covered(&self, end: Endpoint, p: Vec3) -> bool {
+        match end {
+            Endpoint::Surface(tri) => self.covers.covered(tri, p),
+            _ => false,
+        }
+    }
+
     /// Visibility of the segment x → y: every surface but the ends `a` and `b` can occlude.
     fn segment(&self, x: Vec3, a: Endpoint, y: Vec3, b: Endpoint) -> f64 {
         self.vis.transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, a, b)
@@ -813,6 +925,27 @@ fn closest_on_triangle(v: &[Vec3; 3], p: Vec3) -> Vec3 {
     }
     let denom = 1.0 / (va + vb + vc);
     a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Most points of a near-field kernel ([`KernelCtx::near_field`]).
+const NEAR_FIELD_MAX: usize = 64;
+
+/// Points for the unoccluded kernel of surface receiver `r` from surface source `s`: `n` when
+/// the gap between them is at least the receiver's diameter, else enough for a spacing of
+/// about half the gap (`(2·diameter / gap)²`, at most [`NEAR_FIELD_MAX`]).
+fn near_field_points(r: &End, s: &End, n: usize) -> usize {
+    let End::Surface { v, .. } = *r else {
+        return n;
+    };
+    let (cs, rs) = end_sphere(s);
+    let diameter = 2.0 * end_sphere(r).1;
+    let near = closest_on_triangle(&v, cs.as_vec3()).as_dvec3();
+    let gap = ((near - cs).length() - rs).max(0.0);
+    if gap >= diameter {
+        return n;
+    }
+    let q = diameter / gap.max(1e-12);
+    ((q * q).ceil().min(NEAR_FIELD_MAX as f64) as usize).max(n)
 }
 
 /// Bounding sphere of a link end around its centroid: (centre, radius).

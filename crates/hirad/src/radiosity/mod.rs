@@ -5,6 +5,7 @@
 //! - [`formfactor`]: point-to-disk and analytic point-to-polygon form factors, sampled kernels;
 //! - [`oracle`]: the `bf` and `error` refinement oracles;
 //! - [`visibility`]: shadow rays through the cluster tree (and the volume hook);
+//! - [`overlap`]: coplanar overlapping triangles, each overlap given to one of them;
 //! - [`solver`]: refine / gather / push-pull until convergence;
 //! - [`config`]: [`SolverConfig`] and presets; [`stats`]: [`SolveStats`];
 //! - [`output`]: per-vertex radiosity meshes and result files.
@@ -17,6 +18,7 @@ pub mod formfactor;
 pub mod link;
 pub mod oracle;
 pub mod output;
+pub mod overlap;
 pub mod solver;
 pub mod stats;
 pub mod visibility;

@@ -29,6 +29,7 @@ use super::element::{facing_weight, Elements, Kind};
 use super::formfactor::{sample_triangle, KernelCtx};
 use super::link::{Link, LinkKind, LinkSet, Sample};
 use super::oracle::{self, Action};
+use super::overlap::Covers;
 use super::stats::{self, IterStat, SolveStats};
 use super::visibility::Visibility;
 use crate::cluster::{ClusterTree, NONE};
@@ -168,6 +169,8 @@ struct Solver<'a> {
     tree: &'a ClusterTree,
     cfg: &'a SolverConfig,
     vis: &'a Visibility<'a>,
+    /// Coplanar overlaps ([`Covers`]).
+    covers: Covers,
     el: Elements,
     links: Vec<Link>,
     set: LinkSet,
@@ -247,6 +250,15 @@ impl<'a> Solver<'a> {
             threads: rayon::current_num_threads(),
             ..Default::default()
         };
+        let covers = Covers::build(scene, tree);
+        let mut stats = stats;
+        stats.covered_triangles = covers.covered_triangles();
+        if !covers.is_empty() {
+            tracing::info!(
+                "{} triangles lie partly under coplanar ones; the covered parts take no light",
+                stats.covered_triangles
+            );
+        }
         let mut pp_order: Vec<u32> = el.roots().collect();
         pp_order.sort_by_key(|&r| (tree.surface_node[el.elems[r as usize].tri as usize], r));
         let mut s = Solver {
@@ -254,6 +266,7 @@ impl<'a> Solver<'a> {
             tree,
             cfg,
             vis,
+            covers,
             h_cluster: vec![0.0; el.len()],
             k_sum: vec![0.0; el.len()],
             el,
@@ -545,6 +558,7 @@ impl<'a> Solver<'a> {
             elems: &self.el,
             tree: self.tree,
             vis: self.vis,
+            covers: &self.covers,
             n_rays: self.cfg.shadow_rays as usize,
             seed: self.cfg.seed,
             emission: self.cfg.cluster_emission,
@@ -725,6 +739,7 @@ impl<'a> Solver<'a> {
         let h_cluster = &self.h_cluster;
         let k_sum = &self.k_sum;
         let reception = self.cfg.cluster_receive;
+        let covers = &self.covers;
         let emission = self.cfg.cluster_emission;
         // Irradiance handed down by the clusters above each root surface, computed in cluster
         // tree order (`pp_order`) so that the entries of the clusters that consecutive surfaces
@@ -774,7 +789,7 @@ impl<'a> Solver<'a> {
                 let area = e.area as f64;
                 out.gathered_cluster = area * hc.element_sum();
                 out.gathered = out.gathered_cluster;
-                let b = push_rec(el, (h_cluster, k_sum), r, (hc, kc), &mut out);
+                let b = push_rec(el, covers, (h_cluster, k_sum), r, (hc, kc), &mut out);
                 out.updates.push((r, b));
                 out.incident /= area;
                 out
@@ -942,6 +957,7 @@ impl<'a> Solver<'a> {
 /// `down` carries the irradiance and the kernel sum gathered above the element.
 fn push_rec(
     el: &Elements,
+    covers: &Covers,
     (h_cluster, k_sum): (&[f64], &[f64]),
     id: u32,
     down: (DVec3, f64),
@@ -959,14 +975,16 @@ fn push_rec(
         let d = el.direct[id as usize];
         let inc = h + d;
         let rho = e.rho.as_dvec3();
+        // Power only on the part no coplanar triangle covers (the kernels' receiver).
+        let open = area * covers.open_fraction(e.tri, &e.verts);
         out.incident += inc * area;
-        out.absorbed += area * ((DVec3::ONE - rho) * inc).element_sum();
-        out.direct += area * d.element_sum();
+        out.absorbed += open * ((DVec3::ONE - rho) * inc).element_sum();
+        out.direct += open * d.element_sum();
         return e.emission.as_dvec3() + rho * inc;
     }
     let mut acc = DVec3::ZERO;
     for c in el.children(id) {
-        let b = push_rec(el, (h_cluster, k_sum), c, (h, k), out);
+        let b = push_rec(el, covers, (h_cluster, k_sum), c, (h, k), out);
         out.updates.push((c, b));
         acc += b;
     }

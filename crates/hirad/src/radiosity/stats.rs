@@ -80,6 +80,8 @@ pub struct SolveStats {
     /// Cluster emission model (`isotropic` or `directional`).
     pub cluster_emission: String,
     pub threads: usize,
+    /// Triangles partly under a coplanar triangle that owns the overlap (`radiosity::overlap`).
+    pub covered_triangles: usize,
     /// All elements (clusters + surface elements).
     pub elements: usize,
     pub cluster_elements: usize,

@@ -1,0 +1,253 @@
+//! Coplanar overlapping triangles (a poster on a wall, two walls modelled through each other,
+//! duplicated faces). A ray meets one of them where they overlap, but the solver would let both
+//! receive and emit there: that region then sends and takes light twice, kernel sums pass 1
+//! and closed cavities with such faces amplify instead of absorbing. Each point of an overlap
+//! therefore belongs to one triangle, the one of smaller area (a detail lies on what carries
+//! it; equal areas: the lower id); the other's points there are *covered*: the solver's
+//! kernels give them no light and take none from them.
+
+use crate::cluster::ClusterTree;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// For each triangle, the triangles that cover part of it, projected onto its plane.
+#[derive(Clone, Debug, Default)]
+pub struct Covers {
+    offsets: Vec<u32>,
+    ids: Vec<u32>,
+    /// Per entry of `ids`: the covering triangle in the covered one's plane coordinates.
+    shapes: Vec<[Vec2; 3]>,
+    /// Per triangle: the coordinate its plane projection drops.
+    axis: Vec<u8>,
+}
+
+/// Normals closer than this (|cos| above `1 − PARALLEL`) make two triangles parallel.
+const PARALLEL: f32 = 1e-5;
+
+/// Plane distance and overlap tolerance, relative to the larger triangle's longest edge.
+const REL_TOL: f32 = 1e-4;
+
+impl Covers {
+    /// No overlaps.
+    pub const EMPTY: Covers = Covers {
+        offsets: Vec::new(),
+        ids: Vec::new(),
+        shapes: Vec::new(),
+        axis: Vec::new(),
+    };
+
+    /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`.
+    pub fn build(scene: &Scene, tree: &ClusterTree) -> Covers {
+        let n = scene.num_triangles();
+        let per: Vec<Vec<u32>> = (0..n)
+            .into_par_iter()
+            .map(|i| covering(scene, tree, i as u32))
+            .collect();
+        let mut offsets = Vec::with_capacity(n + 1);
+        let (mut ids, mut shapes) = (Vec::new(), Vec::new());
+        let axis: Vec<u8> = scene.normals.iter().map(|&n| drop_axis(n) as u8).collect();
+        offsets.push(0);
+        for (i, v) in per.into_iter().enumerate() {
+            for j in v {
+                let a = axis[i] as usize;
+                shapes.push(scene.tri_vertices(j as usize).map(|p| project(p, a)));
+                ids.push(j);
+            }
+            offsets.push(ids.len() as u32);
+        }
+        Covers {
+            offsets,
+            ids,
+            shapes,
+            axis,
+        }
+    }
+
+    /// No triangle covers another.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// Triangles with a covered part.
+    pub fn covered_triangles(&self) -> usize {
+        self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+
+    /// Entries of triangle `tri` in `ids` and `shapes`.
+    #[inline]
+    fn range(&self, tri: u32) -> std::ops::Range<usize> {
+        match self.offsets.get(tri as usize..tri as usize + 2) {
+            Some(&[a, b]) => a as usize..b as usize,
+            _ => 0..0,
+        }
+    }
+
+    /// The triangles covering parts of triangle `tri`.
+    pub fn of(&self, tri: u32) -> &[u32] {
+        &self.ids[self.range(tri)]
+    }
+
+    /// Share of the triangle `v` (a part of input triangle `tri`) that no triangle covers,
+    /// from 16 stratified points (1 when nothing covers `tri`).
+    pub fn open_fraction(&self, tri: u32, v: &[Vec3; 3]) -> f64 {
+        if self.range(tri).is_empty() {
+            return 1.0;
+        }
+        let mut open = 0;
+        for i in 0..4 {
+            for j in 0..4 {
+                let (u1, u2) = ((i as f32 + 0.5) / 4.0, (j as f32 + 0.5) / 4.0);
+                let s = u1.sqrt();
+                let p = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2);
+                open += !self.covered(tri, p) as u32;
+            }
+        }
+        open as f64 / 16.0
+    }
+
+    /// True when point `p` of triangle `tri` lies under a triangle that covers it.
+    #[inline]
+    pub fn covered(&self, tri: u32, p: Vec3) -> bool {
+        let r = self.range(tri);
+        if r.is_empty() {
+            return false;
+        }
+        let q = project(p, self.axis[tri as usize] as usize);
+        self.shapes[r].iter().any(|v| inside(q, v))
+    }
+}
+
+/// The triangles whose overlap with triangle `i` belongs to them (coplanar, overlapping with
+/// positive area, smaller, or as large with a lower id).
+fn covering(scene: &Scene, tree: &ClusterTree, i: u32) -> Vec<u32> {
+    let vi = scene.tri_vertices(i as usize);
+    let ni = scene.normals[i as usize];
+    let ai = scene.areas[i as usize];
+    if ai <= 0.0 {
+        return Vec::new();
+    }
+    let edge = |v: &[Vec3; 3]| {
+        (v[1] - v[0])
+            .length()
+            .max((v[2] - v[1]).length())
+            .max((v[0] - v[2]).length())
+    };
+    let bb = scene.tri_bbox(i as usize);
+    let grow = REL_TOL * edge(&vi);
+    let (lo, hi) = (bb.min - Vec3::splat(grow), bb.max + Vec3::splat(grow));
+    let mut out = Vec::new();
+    let mut stack = vec![0u32];
+    while let Some(node) = stack.pop() {
+        let nd = &tree.nodes[node as usize];
+        if nd.bbox.max.cmplt(lo).any() || nd.bbox.min.cmpgt(hi).any() {
+            continue;
+        }
+        let surf = &tree.surfaces
+            [nd.first_surface as usize..(nd.first_surface + nd.num_surfaces) as usize];
+        for &j in surf {
+            if j == i {
+                continue;
+            }
+            let aj = scene.areas[j as usize];
+            if !(aj < ai || (aj == ai && j < i)) || aj <= 0.0 {
+                continue;
+            }
+            let nj = scene.normals[j as usize];
+            if ni.dot(nj).abs() < 1.0 - PARALLEL {
+                continue;
+            }
+            let vj = scene.tri_vertices(j as usize);
+            let tol = REL_TOL * edge(&vi).max(edge(&vj));
+            if vj.iter().any(|&p| ni.dot(p - vi[0]).abs() > tol) {
+                continue;
+            }
+            let axis = drop_axis(ni);
+            if overlap(
+                &vi.map(|p| project(p, axis)),
+                &vj.map(|p| project(p, axis)),
+                tol,
+            ) {
+                out.push(j);
+            }
+        }
+        stack.extend(nd.children());
+    }
+    out.sort_unstable();
+    out
+}
+
+/// The coordinate dropped when projecting onto a plane of normal `n` (its largest component).
+fn drop_axis(n: Vec3) -> usize {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    }
+}
+
+fn project(p: Vec3, axis: usize) -> Vec2 {
+    match axis {
+        0 => Vec2::new(p.y, p.z),
+        1 => Vec2::new(p.z, p.x),
+        _ => Vec2::new(p.x, p.y),
+    }
+}
+
+/// Point `q` strictly inside triangle `v` (either winding).
+fn inside(q: Vec2, v: &[Vec2; 3]) -> bool {
+    let s = |a: Vec2, b: Vec2| (b - a).perp_dot(q - a);
+    let (d0, d1, d2) = (s(v[0], v[1]), s(v[1], v[2]), s(v[2], v[0]));
+    (d0 > 0.0 && d1 > 0.0 && d2 > 0.0) || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0)
+}
+
+/// Two triangles overlap by more than `tol` along every separating axis (their edge normals):
+/// touching along an edge or a corner is not an overlap.
+fn overlap(a: &[Vec2; 3], b: &[Vec2; 3], tol: f32) -> bool {
+    for tri in [a, b] {
+        for e in 0..3 {
+            let d = tri[(e + 1) % 3] - tri[e];
+            let axis = Vec2::new(-d.y, d.x);
+            let len = axis.length();
+            if len <= 0.0 {
+                return false;
+            }
+            let axis = axis / len;
+            let span = |t: &[Vec2; 3]| {
+                let p = t.map(|v| v.dot(axis));
+                (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]))
+            };
+            let (a0, a1) = span(a);
+            let (b0, b1) = span(b);
+            if a1.min(b1) - a0.max(b0) <= tol {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlap_needs_positive_area() {
+        let t = |p: [[f32; 2]; 3]| p.map(|q| Vec2::new(q[0], q[1]));
+        let a = t([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+        // Shares the hypotenuse only.
+        let b = t([[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+        assert!(!overlap(&a, &b, 1e-5));
+        // A small triangle inside.
+        let c = t([[0.1, 0.1], [0.3, 0.1], [0.1, 0.3]]);
+        assert!(overlap(&a, &c, 1e-5));
+        assert!(inside(Vec2::new(0.15, 0.15), &c));
+        assert!(!inside(Vec2::new(0.5, 0.4), &c));
+        // Disjoint.
+        let d = t([[2.0, 2.0], [3.0, 2.0], [2.0, 3.0]]);
+        assert!(!overlap(&a, &d, 1e-5));
+    }
+}
