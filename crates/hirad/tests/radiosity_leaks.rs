@@ -13,7 +13,7 @@ use hirad::rng::SplitMix64;
 use hirad::scene::{Material, Scene};
 
 mod radiosity_common;
-use radiosity_common::{quads_scene, Quad};
+use radiosity_common::{quads_scene, rect, Quad};
 
 /// Lamp radiance: exitance E = π·10 W/m².
 const LAMP_LE: f32 = 10.0;
@@ -33,27 +33,9 @@ fn lamp() -> Material {
 const GREY: u32 = 0;
 const LAMP: u32 = 1;
 
-/// Quad `o, o+u, o+u+v, o+v`, facing `u × v`.
-fn rect(o: Vec3, u: Vec3, v: Vec3, mat: u32, group: u32) -> Quad {
-    Quad {
-        p: [o, o + u, o + u + v, o + v],
-        mat,
-        group,
-    }
-}
-
-/// The six inward-facing walls of the box `[lo, hi]`, each in its own group from `g0`.
+/// The six inward-facing grey walls of the box `[lo, hi]`, each in its own group from `g0`.
 fn box_inward(lo: Vec3, hi: Vec3, g0: u32) -> Vec<Quad> {
-    let d = hi - lo;
-    let (x, y, z) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
-    vec![
-        rect(lo, x, y, GREY, g0),         // floor, facing +z
-        rect(lo + z, y, x, GREY, g0 + 1), // ceiling, facing −z
-        rect(lo, z, x, GREY, g0 + 2),     // y = lo, facing +y
-        rect(lo + y, x, z, GREY, g0 + 3), // y = hi, facing −y
-        rect(lo, y, z, GREY, g0 + 4),     // x = lo, facing +x
-        rect(lo + x, z, y, GREY, g0 + 5), // x = hi, facing −x
-    ]
+    radiosity_common::box_inward(lo, hi, GREY, g0)
 }
 
 /// Small randomly oriented grey triangles (as degenerate quads) inside `[lo, hi]`.

@@ -116,3 +116,27 @@ pub fn shared_scene(rel: &str) -> String {
         env!("CARGO_MANIFEST_DIR")
     )
 }
+
+/// Quad `o, o+u, o+u+v, o+v`, facing `u × v`.
+pub fn rect(o: Vec3, u: Vec3, v: Vec3, mat: u32, group: u32) -> Quad {
+    Quad {
+        p: [o, o + u, o + u + v, o + v],
+        mat,
+        group,
+    }
+}
+
+/// The six inward-facing walls of the box `[lo, hi]` in material `mat`, each in its own group
+/// from `g0`: floor, ceiling, y = lo, y = hi, x = lo, x = hi.
+pub fn box_inward(lo: Vec3, hi: Vec3, mat: u32, g0: u32) -> Vec<Quad> {
+    let d = hi - lo;
+    let (x, y, z) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+    vec![
+        rect(lo, x, y, mat, g0),         // floor, facing +z
+        rect(lo + z, y, x, mat, g0 + 1), // ceiling, facing −z
+        rect(lo, z, x, mat, g0 + 2),     // y = lo, facing +y
+        rect(lo + y, x, z, mat, g0 + 3), // y = hi, facing −y
+        rect(lo, y, z, mat, g0 + 4),     // x = lo, facing +x
+        rect(lo + x, z, y, mat, g0 + 5), // x = hi, facing −x
+    ]
+}
