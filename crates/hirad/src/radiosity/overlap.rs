@@ -1,6 +1,6 @@
-//! Coplanar overlapping triangles (a poster on a wall, two walls modelled through each other,
-//! duplicated faces). A ray meets one of them where they overlap, but the solver would let both
-//! receive and emit there: that region then sends and takes light twice, kernel sums pass 1
+//! Coplanar overlapping faces (a poster on a wall, two walls modelled through each other,
+//! duplicated triangles; with two-sided surfaces also back-to-back ones). A ray meets one of
+//! them where they overlap, but the solver would let both receive and emit there: that region then sends and takes light twice, kernel sums pass 1
 //! and closed cavities with such faces amplify instead of absorbing. Each point of an overlap
 //! therefore belongs to one triangle, the one of smaller area (a detail lies on what carries
 //! it; equal areas: the lower id); the other's points there are *covered*: the solver's
@@ -37,12 +37,14 @@ impl Covers {
         axis: Vec::new(),
     };
 
-    /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`.
-    pub fn build(scene: &Scene, tree: &ClusterTree) -> Covers {
+    /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`. One-sided
+    /// triangles overlap only when they face the same way (back-to-back faces of a thin board
+    /// each receive from their own side); two-sided ones always do.
+    pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Covers {
         let n = scene.num_triangles();
         let per: Vec<Vec<u32>> = (0..n)
             .into_par_iter()
-            .map(|i| covering(scene, tree, i as u32))
+            .map(|i| covering(scene, tree, i as u32, two_sided))
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);
         let (mut ids, mut shapes) = (Vec::new(), Vec::new());
@@ -118,9 +120,10 @@ impl Covers {
     }
 }
 
-/// The triangles whose overlap with triangle `i` belongs to them (coplanar, overlapping with
-/// positive area, smaller, or as large with a lower id).
-fn covering(scene: &Scene, tree: &ClusterTree, i: u32) -> Vec<u32> {
+/// The triangles whose overlap with triangle `i` belongs to them (coplanar, facing the same
+/// way unless `two_sided`, overlapping with positive area, smaller, or as large with a lower
+/// id).
+fn covering(scene: &Scene, tree: &ClusterTree, i: u32, two_sided: bool) -> Vec<u32> {
     let vi = scene.tri_vertices(i as usize);
     let ni = scene.normals[i as usize];
     let ai = scene.areas[i as usize];
@@ -154,7 +157,8 @@ fn covering(scene: &Scene, tree: &ClusterTree, i: u32) -> Vec<u32> {
                 continue;
             }
             let nj = scene.normals[j as usize];
-            if ni.dot(nj).abs() < 1.0 - PARALLEL {
+            let c = ni.dot(nj);
+            if c.abs() < 1.0 - PARALLEL || (c < 0.0 && !two_sided) {
                 continue;
             }
             let vj = scene.tri_vertices(j as usize);

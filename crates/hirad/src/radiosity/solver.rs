@@ -250,7 +250,7 @@ impl<'a> Solver<'a> {
             threads: rayon::current_num_threads(),
             ..Default::default()
         };
-        let covers = Covers::build(scene, tree);
+        let covers = Covers::build(scene, tree, cfg.two_sided);
         let mut stats = stats;
         stats.covered_triangles = covers.covered_triangles();
         if !covers.is_empty() {
