@@ -932,15 +932,21 @@ const NEAR_FIELD_MAX: usize = 64;
 
 /// Points for the unoccluded kernel of surface receiver `r` from surface source `s`: `n` when
 /// the gap between them is at least the receiver's diameter, else enough for a spacing of
-/// about half the gap (`(2·diameter / gap)²`, at most [`NEAR_FIELD_MAX`]).
+/// about the gap (`(diameter / gap)²`, at most [`NEAR_FIELD_MAX`]). The gap is found by
+/// alternating closest-point projections between the two triangles (it converges to their
+/// distance from above; two rounds are close for the pairs that matter).
 fn near_field_points(r: &End, s: &End, n: usize) -> usize {
-    let End::Surface { v, .. } = *r else {
+    let (End::Surface { v: vr, .. }, End::Surface { v: vs, c: cs, .. }) = (*r, *s) else {
         return n;
     };
-    let (cs, rs) = end_sphere(s);
     let diameter = 2.0 * end_sphere(r).1;
-    let near = closest_on_triangle(&v, cs.as_vec3()).as_dvec3();
-    let gap = ((near - cs).length() - rs).max(0.0);
+    let mut p = closest_on_triangle(&vr, cs);
+    let mut q = closest_on_triangle(&vs, p);
+    for _ in 0..2 {
+        p = closest_on_triangle(&vr, q);
+        q = closest_on_triangle(&vs, p);
+    }
+    let gap = p.distance(q) as f64;
     if gap >= diameter {
         return n;
     }
