@@ -13,7 +13,7 @@ use hirad::rng::SplitMix64;
 use hirad::scene::{Material, Scene, Sun, UpAxis};
 
 mod radiosity_common;
-use radiosity_common::{quads_scene, rect, Quad};
+use radiosity_common::{face_irradiance, quads_scene, rect, Quad};
 
 const GREY: u32 = 0;
 const LAMP: u32 = 1;
@@ -105,19 +105,6 @@ fn reference(scene: &Scene, pt: &PathTracer, group: u32, back: bool, n: usize) -
     std::f64::consts::PI * sum / n as f64
 }
 
-/// The solution's mean irradiance (red) over the front (or back) faces of `group`.
-fn solved(sol: &Solution, scene: &Scene, group: u32, back: bool) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for t in 0..scene.num_triangles() {
-        if scene.tri_object[t] == group {
-            let a = scene.areas[t] as f64;
-            num += a * sol.triangle_irradiance(t as u32, back).x;
-            den += a;
-        }
-    }
-    num / den
-}
-
 /// The faces compared: every group but the lamp, with the table's underside as its own group
 /// or as the back of the two-sided table top.
 fn faces(two_sided: bool) -> Vec<(u32, bool)> {
@@ -149,10 +136,10 @@ fn error(sol: &Solution, scene: &Scene, refs: &[f64], two_sided: bool) -> f64 {
         if std::env::var_os("GT_FACES").is_some() {
             eprintln!(
                 "  face {g} back {b}: solver {:.3} path tracer {r:.3}",
-                solved(sol, scene, g, b)
+                face_irradiance(sol, scene, g, b)
             );
         }
-        num += (solved(sol, scene, g, b) - r).abs();
+        num += (face_irradiance(sol, scene, g, b) - r).abs();
         den += r;
     }
     num / den
@@ -250,8 +237,8 @@ fn sun_and_sky_match_their_closed_forms() {
         },
     );
     let pi = std::f64::consts::PI;
-    let floor = solved(&sol, &scene, 0, false);
-    let wall = solved(&sol, &scene, 1, false);
+    let floor = face_irradiance(&sol, &scene, 0, false);
+    let wall = face_irradiance(&sol, &scene, 1, false);
     let want_floor = e_sun as f64 * elev.sin() as f64 + pi * l_sky as f64;
     // A vertical surface sees the upper half of its hemisphere: π·L/2.
     let want_wall = e_sun as f64 * elev.cos() as f64 + pi * l_sky as f64 / 2.0;

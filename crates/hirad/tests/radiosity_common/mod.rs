@@ -98,11 +98,21 @@ pub fn square_z(z: f32, up: bool, mat: u32, group: u32) -> Quad {
 
 /// Area-weighted mean irradiance over the front faces of the triangles of `group`.
 pub fn group_irradiance(sol: &hirad::radiosity::Solution, scene: &Scene, group: u32) -> f64 {
+    face_irradiance(sol, scene, group, false)
+}
+
+/// Area-weighted mean irradiance (red) over the front, or `back`, faces of `group`.
+pub fn face_irradiance(
+    sol: &hirad::radiosity::Solution,
+    scene: &Scene,
+    group: u32,
+    back: bool,
+) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     for t in 0..scene.num_triangles() {
         if scene.tri_object[t] == group {
             let a = scene.areas[t] as f64;
-            num += a * sol.triangle_irradiance(t as u32, false).x;
+            num += a * sol.triangle_irradiance(t as u32, back).x;
             den += a;
         }
     }
