@@ -17,6 +17,10 @@
 //!   ([`KernelEval::members`]). The oracle's estimate uses the order-2 spherical-harmonic
 //!   projected area (`ClusterOrient::projected_area`).
 //!
+//! Surface pairs closer than the receiver's diameter integrate the unoccluded form factor from
+//! more points (spacing about the gap, [`KernelCtx::near_field`]); points of a triangle that a
+//! coplanar one covers ([`Covers`]) neither receive nor emit.
+//!
 //! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
 //! centre, facing the source (`spec/radiosity.md`); a directional cluster with oriented
 //! reception samples its surfaces in proportion to their hand-out weights (see

@@ -234,6 +234,7 @@ impl<'a> Solver<'a> {
             el.b[id as usize] = el.elems[id as usize].emission.as_dvec3();
         }
         let nc = el.num_clusters as usize;
+        let covers = Covers::build(scene, tree, cfg.two_sided);
         let stats = SolveStats {
             scene: scene.name.clone(),
             triangles: scene.num_triangles(),
@@ -248,11 +249,9 @@ impl<'a> Solver<'a> {
             cluster_emission: cfg.cluster_emission.name().into(),
             cluster_receive: cfg.cluster_receive.name().into(),
             threads: rayon::current_num_threads(),
+            covered_triangles: covers.covered_triangles(),
             ..Default::default()
         };
-        let covers = Covers::build(scene, tree, cfg.two_sided);
-        let mut stats = stats;
-        stats.covered_triangles = covers.covered_triangles();
         if !covers.is_empty() {
             tracing::info!(
                 "{} triangles lie partly under coplanar ones; the covered parts take no light",
