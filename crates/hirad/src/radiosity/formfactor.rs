@@ -18,7 +18,7 @@
 //!   projected area (`ClusterOrient::projected_area`).
 //!
 //! Surface pairs closer than the receiver's diameter integrate the unoccluded form factor from
-//! more points (spacing about the gap, [`KernelCtx::near_field`]); points of a triangle that a
+//! more points (spacing about the gap); points of a triangle that a
 //! coplanar one covers ([`Covers`]) neither receive nor emit.
 //!
 //! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
