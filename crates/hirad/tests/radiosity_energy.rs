@@ -18,7 +18,8 @@ use hirad::rng::SplitMix64;
 use hirad::scene::{Material, Scene};
 
 mod radiosity_common;
-use radiosity_common::{box_inward, quads_scene, rect, Quad};
+use hirad::radiosity::formfactor::sample_triangle;
+use radiosity_common::{box_inward, cosine_dir, quads_scene, rect, Quad};
 
 const WALL: u32 = 0;
 const LAMP: u32 = 1;
@@ -61,22 +62,6 @@ fn room(open: bool) -> Scene {
     quads_scene(&q, mats)
 }
 
-/// Cosine-distributed direction around `n` from two uniform numbers.
-fn cosine_dir(n: Vec3, u1: f32, u2: f32) -> Vec3 {
-    let a = if n.x.abs() > 0.9 { Vec3::Y } else { Vec3::X };
-    let t = n.cross(a).normalize();
-    let b = n.cross(t);
-    let r = u1.sqrt();
-    let phi = 2.0 * std::f32::consts::PI * u2;
-    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalize()
-}
-
-/// Uniform point of triangle `v`.
-fn on_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
-    let s = u1.sqrt();
-    v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2)
-}
-
 /// Shoot `n` rays carrying the powers (channel sums) of the triangles `srcs` (geometry, normal,
 /// power) and return the power arriving on the front of each group, and the power no front
 /// face receives: leaving the scene, or absorbed by the back of a one-sided surface.
@@ -101,7 +86,7 @@ fn shoot(
         let x = rng.next_f64() * total;
         let i = cdf.partition_point(|&c| c <= x).min(srcs.len() - 1);
         let (v, nrm, _) = &srcs[i];
-        let o = on_triangle(v, rng.next_f32(), rng.next_f32()) + *nrm * 1e-5;
+        let o = sample_triangle(v, rng.next_f32(), rng.next_f32()) + *nrm * 1e-5;
         let d = cosine_dir(*nrm, rng.next_f32(), rng.next_f32());
         match caster.closest(o, d, 0.0, f32::INFINITY) {
             Some(h) if scene.normals[h.tri as usize].dot(d) < 0.0 => {

@@ -13,7 +13,8 @@ use hirad::rng::SplitMix64;
 use hirad::scene::{Material, Scene, Sun, UpAxis};
 
 mod radiosity_common;
-use radiosity_common::{face_irradiance, quads_scene, rect, Quad};
+use hirad::radiosity::formfactor::sample_triangle;
+use radiosity_common::{cosine_dir, face_irradiance, quads_scene, rect, Quad};
 
 const GREY: u32 = 0;
 const LAMP: u32 = 1;
@@ -90,17 +91,9 @@ fn reference(scene: &Scene, pt: &PathTracer, group: u32, back: bool, n: usize) -
         } else {
             scene.normals[t]
         };
-        let s = rng.next_f32().sqrt();
-        let u = rng.next_f32();
-        let p = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u)) + v[2] * (s * u);
-        let a = if nrm.x.abs() > 0.9 { Vec3::Y } else { Vec3::X };
-        let tx = nrm.cross(a).normalize();
-        let ty = nrm.cross(tx);
-        let (u1, u2) = (rng.next_f32(), rng.next_f32());
-        let r = u1.sqrt();
-        let phi = 2.0 * std::f32::consts::PI * u2;
-        let d = tx * (r * phi.cos()) + ty * (r * phi.sin()) + nrm * (1.0 - u1).max(0.0).sqrt();
-        sum += pt.radiance(p + nrm * 1e-4, d.normalize(), &mut rng).x as f64;
+        let p = sample_triangle(&v, rng.next_f32(), rng.next_f32());
+        let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
+        sum += pt.radiance(p + nrm * 1e-4, d, &mut rng).x as f64;
     }
     std::f64::consts::PI * sum / n as f64
 }

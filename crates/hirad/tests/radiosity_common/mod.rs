@@ -150,3 +150,13 @@ pub fn box_inward(lo: Vec3, hi: Vec3, mat: u32, g0: u32) -> Vec<Quad> {
         rect(lo + x, z, y, mat, g0 + 5), // x = hi, facing −x
     ]
 }
+
+/// Cosine-distributed direction around the unit normal `n` from two uniform numbers.
+pub fn cosine_dir(n: Vec3, u1: f32, u2: f32) -> Vec3 {
+    let a = if n.x.abs() > 0.9 { Vec3::Y } else { Vec3::X };
+    let t = n.cross(a).normalize();
+    let b = n.cross(t);
+    let r = u1.sqrt();
+    let phi = 2.0 * std::f32::consts::PI * u2;
+    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalize()
+}
