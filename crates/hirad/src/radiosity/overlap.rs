@@ -2,9 +2,10 @@
 //! duplicated triangles; with two-sided surfaces also back-to-back ones). A ray meets one of
 //! them where they overlap, but the solver would let both receive and emit there: that region then sends and takes light twice, kernel sums pass 1
 //! and closed cavities with such faces amplify instead of absorbing. Each point of an overlap
-//! therefore belongs to one triangle, the one of smaller area (a detail lies on what carries
-//! it; equal areas: the lower id); the other's points there are *covered*: the solver's
-//! kernels give them no light and take none from them.
+//! therefore belongs to one triangle: an emitter's over a non-emitter's (a lamp panel flush with
+//! a ceiling shines), then that of the smaller object (a detail lies on what carries it, however
+//! finely either is tessellated), then the smaller triangle, then the lower id; the other's
+//! points there are *covered*: the solver's kernels give them no light and take none from them.
 
 use crate::cluster::ClusterTree;
 use crate::scene::Scene;
@@ -42,9 +43,21 @@ impl Covers {
     /// each receive from their own side); two-sided ones always do.
     pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Covers {
         let n = scene.num_triangles();
+        let mut object_area = vec![0.0f64; scene.objects.len().max(1)];
+        for t in 0..n {
+            object_area[scene.tri_object[t] as usize] += scene.areas[t] as f64;
+        }
+        let rank = |t: u32| {
+            let t = t as usize;
+            (
+                !scene.material_of(t).is_emitter(),
+                object_area[scene.tri_object[t] as usize],
+                scene.areas[t],
+            )
+        };
         let per: Vec<Vec<u32>> = (0..n)
             .into_par_iter()
-            .map(|i| covering(scene, tree, i as u32, two_sided))
+            .map(|i| covering(scene, tree, i as u32, two_sided, &rank))
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);
         let (mut ids, mut shapes) = (Vec::new(), Vec::new());
@@ -121,9 +134,15 @@ impl Covers {
 }
 
 /// The triangles whose overlap with triangle `i` belongs to them (coplanar, facing the same
-/// way unless `two_sided`, overlapping with positive area, smaller, or as large with a lower
-/// id).
-fn covering(scene: &Scene, tree: &ClusterTree, i: u32, two_sided: bool) -> Vec<u32> {
+/// way unless `two_sided`, overlapping with positive area, of lower `rank` (emitter first,
+/// then object area, then triangle area), or of equal rank with a lower id).
+fn covering(
+    scene: &Scene,
+    tree: &ClusterTree,
+    i: u32,
+    two_sided: bool,
+    rank: &(impl Fn(u32) -> (bool, f64, f32) + Sync),
+) -> Vec<u32> {
     let vi = scene.tri_vertices(i as usize);
     let ni = scene.normals[i as usize];
     let ai = scene.areas[i as usize];
@@ -152,8 +171,13 @@ fn covering(scene: &Scene, tree: &ClusterTree, i: u32, two_sided: bool) -> Vec<u
             if j == i {
                 continue;
             }
-            let aj = scene.areas[j as usize];
-            if !(aj < ai || (aj == ai && j < i)) || aj <= 0.0 {
+            let (rj, ri) = (rank(j), rank(i));
+            let owns = match rj.partial_cmp(&ri) {
+                Some(std::cmp::Ordering::Less) => true,
+                Some(std::cmp::Ordering::Equal) => j < i,
+                _ => false,
+            };
+            if !owns || scene.areas[j as usize] <= 0.0 {
                 continue;
             }
             let nj = scene.normals[j as usize];
