@@ -1,0 +1,563 @@
+//! Where a solution's light goes wrong, measured against brute force on the same scene.
+//!
+//! ```text
+//! cargo run --release --example transport_audit -- SCENE [MODE] [options]
+//!   MODE  irradiance  per object: solver irradiance against path-traced irradiance at random
+//!                     points of the object (light sampling for the emitters, one path for the
+//!                     rest); the path-traced values are cached in $TMPDIR/hirad-audit
+//!         self        per object: solver irradiance against what cosine rays from the same
+//!                     points gather from the solution's own radiosity (exact visibility):
+//!                     the transport error of one gather, without interreflection
+//!         links       per link: power delivered against Monte Carlo between the link's ends
+//!                     (exact visibility), by link class (surface/cluster ends) and by centre
+//!                     distance over the larger end's diameter
+//!   --two-sided  --preset P  --clustering S  --visibility V  --samples N (per object; per
+//!   link N/100, at least 16)  --object NAME (links: only links into that object)
+//! ```
+use glam::Vec3;
+use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::progress::NoProgress;
+use hirad::radiosity::element::{facing_weight, Element, Kind};
+use hirad::radiosity::formfactor::sample_triangle;
+use hirad::radiosity::{solve, Solution, SolverConfig, VisibilityMode};
+use hirad::ray::RayCaster;
+use hirad::render::{PathTracer, ReferenceOptions};
+use hirad::rng::SplitMix64;
+use hirad::scene::{Scene, SceneOptions};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Ray origins leave their surface by this much (scene units) along the normal.
+const OFF: f32 = 2e-6;
+
+struct Opts {
+    scene: String,
+    mode: String,
+    two_sided: bool,
+    preset: String,
+    clustering: String,
+    visibility: Option<String>,
+    samples: usize,
+    object: Option<String>,
+}
+
+fn parse() -> Opts {
+    let mut a = std::env::args().skip(1);
+    let mut o = Opts {
+        scene: a
+            .next()
+            .expect("usage: transport_audit SCENE [MODE] [options]"),
+        mode: "irradiance".into(),
+        two_sided: false,
+        preset: "default".into(),
+        clustering: "proxi".into(),
+        visibility: None,
+        samples: 20_000,
+        object: None,
+    };
+    while let Some(x) = a.next() {
+        let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
+        match x.as_str() {
+            "--two-sided" => o.two_sided = true,
+            "--preset" => o.preset = val(),
+            "--clustering" => o.clustering = val(),
+            "--visibility" => o.visibility = Some(val()),
+            "--samples" => o.samples = val().parse().expect("--samples N"),
+            "--object" => o.object = Some(val()),
+            m if !m.starts_with("--") => o.mode = m.into(),
+            _ => panic!("unknown option {x}"),
+        }
+    }
+    o
+}
+
+/// Triangles by area: draws one with probability proportional to its area.
+struct ByArea {
+    ids: Vec<u32>,
+    cdf: Vec<f64>,
+}
+
+impl ByArea {
+    fn new(ids: Vec<u32>, area: impl Fn(u32) -> f64) -> Self {
+        let mut acc = 0.0;
+        let cdf = ids
+            .iter()
+            .map(|&t| {
+                acc += area(t);
+                acc
+            })
+            .collect();
+        ByArea { ids, cdf }
+    }
+
+    fn total(&self) -> f64 {
+        self.cdf.last().copied().unwrap_or(0.0)
+    }
+
+    fn pick(&self, rng: &mut SplitMix64) -> u32 {
+        let x = rng.next_f64() * self.total();
+        self.ids[self
+            .cdf
+            .partition_point(|&c| c <= x)
+            .min(self.ids.len() - 1)]
+    }
+}
+
+fn cosine_dir(n: Vec3, u: f32, v: f32) -> Vec3 {
+    let (t, b) = n.any_orthonormal_pair();
+    let (r, phi) = (u.sqrt(), 2.0 * std::f32::consts::PI * v);
+    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u).max(0.0).sqrt()).normalize()
+}
+
+/// Barycentric coordinates of `p` in triangle `v` (in its plane).
+fn bary(v: &[Vec3; 3], p: Vec3) -> [f32; 3] {
+    let (e1, e2, ep) = (v[1] - v[0], v[2] - v[0], p - v[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (dp1, dp2) = (ep.dot(e1), ep.dot(e2));
+    let den = d11 * d22 - d12 * d12;
+    let b1 = (d22 * dp1 - d12 * dp2) / den;
+    let b2 = (d11 * dp2 - d12 * dp1) / den;
+    [1.0 - b1 - b2, b1, b2]
+}
+
+/// Root element of triangle `t` (its back face when `back` and two-sided).
+fn root(sol: &Solution, t: u32, back: bool) -> u32 {
+    let el = &sol.elements;
+    el.first_root + t + if back && el.two_sided { el.num_tris } else { 0 }
+}
+
+/// Leaf element under `root` that contains point `p`.
+fn leaf_at(sol: &Solution, root: u32, p: Vec3) -> u32 {
+    let el = &sol.elements;
+    let mut id = root;
+    while el.elems[id as usize].num_children > 0 {
+        id = el
+            .children(id)
+            .map(|c| {
+                let b = bary(&el.elems[c as usize].verts, p);
+                (b[0].min(b[1]).min(b[2]), c)
+            })
+            .fold((f32::MIN, id), |a, b| if b.0 > a.0 { b } else { a })
+            .1;
+    }
+    id
+}
+
+/// Irradiance (channel sum) at `p` (normal `n`) from the emitters' fronts by light sampling,
+/// each emitter point weighted by `radiance(triangle, point)`.
+fn direct(
+    scene: &Scene,
+    caster: &RayCaster,
+    ems: &ByArea,
+    (p, n): (Vec3, Vec3),
+    rng: &mut SplitMix64,
+    radiance: impl Fn(u32, Vec3) -> f64,
+) -> f64 {
+    if ems.ids.is_empty() {
+        return 0.0;
+    }
+    let t = ems.pick(rng);
+    let y = sample_triangle(
+        &scene.tri_vertices(t as usize),
+        rng.next_f32(),
+        rng.next_f32(),
+    );
+    let o = p + n * OFF;
+    let d = y - o;
+    let r2 = d.length_squared();
+    let len = r2.sqrt();
+    let w = d / len;
+    let (cx, cy) = (n.dot(w), -scene.normals[t as usize].dot(w));
+    if cx <= 0.0 || cy <= 0.0 || caster.occluded(o, w, 0.0, len * (1.0 - 1e-4)) {
+        return 0.0;
+    }
+    radiance(t, y) * (cx * cy) as f64 / r2 as f64 * ems.total()
+}
+
+/// One row of a per-object table.
+struct Row {
+    object: usize,
+    back: bool,
+    area: f64,
+    solver: f64,
+    other: f64,
+    stderr: f64,
+    direct: f64,
+}
+
+/// An object's irradiance by another method: mean, its standard error, the emitters' part,
+/// and the solver's value at the same points when not the area average.
+struct Estimate {
+    value: f64,
+    stderr: f64,
+    direct: f64,
+    solver: Option<f64>,
+}
+
+/// Per object and side: area-weighted solver irradiance and `estimate(object, side, points)`.
+fn per_object(
+    scene: &Scene,
+    sol: &Solution,
+    two_sided: bool,
+    estimate: impl Fn(usize, bool, &ByArea) -> Estimate + Sync,
+) -> Vec<Row> {
+    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+    for t in 0..scene.num_triangles() {
+        by[scene.tri_object[t] as usize].push(t as u32);
+    }
+    let sides: &[bool] = if two_sided { &[false, true] } else { &[false] };
+    let mut rows = Vec::new();
+    for &back in sides {
+        let part: Vec<Row> = by
+            .par_iter()
+            .enumerate()
+            .filter(|(_, ts)| !ts.is_empty())
+            .map(|(o, ts)| {
+                let tris = ByArea::new(ts.clone(), |t| scene.areas[t as usize] as f64);
+                let area = tris.total();
+                let solver = ts
+                    .iter()
+                    .map(|&t| {
+                        scene.areas[t as usize] as f64
+                            * sol.triangle_irradiance(t, back).element_sum()
+                    })
+                    .sum::<f64>()
+                    / area;
+                let e = estimate(o, back, &tris);
+                Row {
+                    object: o,
+                    back,
+                    area,
+                    solver: e.solver.unwrap_or(solver),
+                    other: e.value,
+                    stderr: e.stderr,
+                    direct: e.direct,
+                }
+            })
+            .collect();
+        rows.extend(part);
+    }
+    rows
+}
+
+fn print_rows(scene: &Scene, mut rows: Vec<Row>, what: &str) {
+    let (s, o) = rows
+        .iter()
+        .filter(|r| r.other > 0.0)
+        .fold((0.0, 0.0), |a, r| {
+            (a.0 + r.area * r.solver, a.1 + r.area * r.other)
+        });
+    println!("Σ A·H: solver {s:.3}, {what} {o:.3}, ratio {:.4}", s / o);
+    rows.sort_by(|a, b| {
+        let d = |r: &Row| (r.area * (r.solver - r.other)).abs();
+        d(b).total_cmp(&d(a))
+    });
+    println!(
+        "{:40} {:5} {:>9} {:>10} {:>10} {:>7} {:>10} {:>8} {:>9}",
+        "object", "back", "area", "H solver", what, "ratio", "A·ΔH", "±", "direct"
+    );
+    for r in rows.iter().take(40) {
+        let name: String = scene.objects[r.object].chars().take(40).collect();
+        println!(
+            "{name:40} {:5} {:9.3} {:10.3} {:10.3} {:7.3} {:10.2} {:8.3} {:9.3}",
+            r.back,
+            r.area,
+            r.solver,
+            r.other,
+            r.solver / r.other,
+            r.area * (r.solver - r.other),
+            r.stderr,
+            r.direct
+        );
+    }
+}
+
+/// Path-traced irradiance at random points of each object (cached per scene and seed).
+fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+    let ropts = ReferenceOptions {
+        two_sided: o.two_sided,
+        ..Default::default()
+    };
+    let pt = PathTracer::new(scene, caster, &ropts);
+    let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
+    let cache = std::env::temp_dir().join("hirad-audit");
+    let _ = std::fs::create_dir_all(&cache);
+    let key = o.scene.replace(['/', '.'], "_");
+    let m = o.samples;
+    let rows = per_object(scene, sol, o.two_sided, |obj, back, tris| {
+        let file = cache.join(format!("{key}_{}_{obj}_{}_{m}", o.two_sided, back as u8));
+        if let Some(v) = std::fs::read_to_string(&file).ok().and_then(|c| {
+            let v: Vec<f64> = c
+                .split_whitespace()
+                .filter_map(|x| x.parse().ok())
+                .collect();
+            (v.len() == 3).then_some(v)
+        }) {
+            return Estimate {
+                value: v[0],
+                stderr: v[1],
+                direct: v[2],
+                solver: None,
+            };
+        }
+        let mut rng = SplitMix64::new(obj as u64 * 7919 + back as u64);
+        let (mut s, mut s2, mut sd) = (0.0f64, 0.0f64, 0.0f64);
+        for _ in 0..m {
+            let t = tris.pick(&mut rng) as usize;
+            let n = if back {
+                -scene.normals[t]
+            } else {
+                scene.normals[t]
+            };
+            let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+            let d = cosine_dir(n, rng.next_f32(), rng.next_f32());
+            let org = p + n * OFF;
+            // Indirect: one path, less the emission of a directly hit emitter front.
+            let mut l = pt.radiance(org, d, &mut rng);
+            if let Some(h) = caster.closest(org, d, 0.0, f32::INFINITY) {
+                if scene.normals[h.tri as usize].dot(d) < 0.0 {
+                    l -= scene.material_of(h.tri as usize).emission;
+                }
+            }
+            let dh = direct(scene, caster, &ems, (p, n), &mut rng, |t, _| {
+                scene.material_of(t as usize).emission.element_sum() as f64
+            });
+            let h = PI * l.element_sum() as f64 + dh;
+            s += h;
+            s2 += h * h;
+            sd += dh;
+        }
+        let mean = s / m as f64;
+        let se = ((s2 / m as f64 - mean * mean).max(0.0) / m as f64).sqrt();
+        let dm = sd / m as f64;
+        let _ = std::fs::write(&file, format!("{mean} {se} {dm}"));
+        Estimate {
+            value: mean,
+            stderr: se,
+            direct: dm,
+            solver: None,
+        }
+    });
+    print_rows(scene, rows, "path tracer");
+}
+
+/// What cosine rays gather from the solution's own radiosity at random points of each object.
+fn self_consistency(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+    let el = &sol.elements;
+    let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
+    let m = o.samples;
+    let leaf_b = |t: u32, back: bool, p: Vec3| el.b[leaf_at(sol, root(sol, t, back), p) as usize];
+    let rows = per_object(scene, sol, o.two_sided, |obj, back, tris| {
+        let mut rng = SplitMix64::new(obj as u64 * 31 + back as u64);
+        let (mut hs, mut hm, mut hd, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+        for _ in 0..m {
+            let t = tris.pick(&mut rng) as usize;
+            let e = &el.elems[root(sol, t as u32, back) as usize];
+            if e.rho.min_element() <= 0.0 {
+                continue;
+            }
+            let nrm = e.normal;
+            let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+            let lf = leaf_at(sol, root(sol, t as u32, back), p);
+            let le = &el.elems[lf as usize];
+            hs += ((el.b[lf as usize] - le.emission.as_dvec3()) / le.rho.as_dvec3()).element_sum();
+            let dh = direct(scene, caster, &ems, (p, nrm), &mut rng, |t, y| {
+                leaf_b(t, false, y).element_sum() / PI
+            });
+            let mut g = dh;
+            let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
+            if let Some(h) = caster.closest(p + nrm * OFF, d, 0.0, f32::INFINITY) {
+                let hb = scene.normals[h.tri as usize].dot(d) > 0.0;
+                let em = scene.material_of(h.tri as usize).is_emitter();
+                // Back faces count when two-sided; emitter fronts come from light sampling.
+                if if hb { o.two_sided } else { !em } {
+                    let q = p + nrm * OFF + d * h.t;
+                    g += leaf_b(h.tri, hb, q).element_sum();
+                }
+            }
+            hm += g;
+            hd += dh;
+            n += 1;
+        }
+        let n = n.max(1) as f64;
+        // The solver's side of the row: the leaf irradiance at the same points.
+        Estimate {
+            value: hm / n,
+            stderr: 0.0,
+            direct: hd / n,
+            solver: Some(hs / n),
+        }
+    });
+    print_rows(scene, rows, "rays on B");
+}
+
+/// Root surface elements under element `id` (itself when a surface).
+fn member_roots(sol: &Solution, id: u32, out: &mut Vec<u32>) {
+    let el = &sol.elements;
+    if el.elems[id as usize].kind == Kind::Surface {
+        out.push(id);
+        return;
+    }
+    for c in el.children(id) {
+        member_roots(sol, c, out);
+    }
+}
+
+/// One audited link: class (2·receiver is a cluster + source is a cluster), power delivered,
+/// power by Monte Carlo, centre distance over the larger end's diameter.
+struct LinkRow {
+    class: usize,
+    got: f64,
+    want: f64,
+    dist: f64,
+}
+
+fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
+    let el = &sol.elements;
+    let set = &sol.links;
+    let n = (o.samples / 100).max(16);
+    let diam = |e: &Element| match e.kind {
+        Kind::Cluster => {
+            let b = &tree.nodes[e.tri as usize].bbox;
+            (b.max - b.min).length()
+        }
+        Kind::Surface => {
+            let v = e.verts;
+            (v[0] - v[1])
+                .length()
+                .max((v[1] - v[2]).length())
+                .max((v[2] - v[0]).length())
+        }
+    };
+    let rows: Vec<LinkRow> = set
+        .links
+        .par_iter()
+        .enumerate()
+        .filter_map(|(li, l)| {
+            let (re, se) = (&el.elems[l.recv as usize], &el.elems[l.src as usize]);
+            let mut recv = Vec::new();
+            member_roots(sol, l.recv, &mut recv);
+            if let Some(name) = &o.object {
+                let of = |r: &u32| {
+                    &scene.objects[scene.tri_object[el.elems[*r as usize].tri as usize] as usize]
+                };
+                if !recv.iter().any(|r| of(r) == name) {
+                    return None;
+                }
+            }
+            let contrib = set.gather(l, &el.b).element_sum();
+            // A cluster receiver hands its irradiance to its surfaces by facing weight.
+            let got: f64 = recv
+                .iter()
+                .map(|&r| {
+                    let e = &el.elems[r as usize];
+                    let w = match re.kind {
+                        Kind::Surface => 1.0,
+                        Kind::Cluster => {
+                            facing_weight(e.centroid, e.normal, se.centroid, se.facing_normal())
+                        }
+                    };
+                    e.area as f64 * w * contrib
+                })
+                .sum();
+            let recv = ByArea::new(recv, |r| el.elems[r as usize].area as f64);
+            let mut leaves = Vec::new();
+            el.leaves_of(l.src, &mut leaves);
+            if leaves.is_empty() {
+                return None;
+            }
+            let src = ByArea::new(leaves, |s| el.elems[s as usize].area as f64);
+            let mut rng = SplitMix64::new(li as u64 * 977 + 5);
+            let mut acc = 0.0;
+            for _ in 0..n {
+                let er = &el.elems[recv.pick(&mut rng) as usize];
+                let x = sample_triangle(&er.verts, rng.next_f32(), rng.next_f32());
+                let sid = src.pick(&mut rng);
+                let es = &el.elems[sid as usize];
+                let y = sample_triangle(&es.verts, rng.next_f32(), rng.next_f32());
+                let d = y - x;
+                let r2 = d.length_squared();
+                let w = d / r2.sqrt();
+                let (cx, cy) = (er.normal.dot(w), -es.normal.dot(w));
+                if cx <= 0.0 || cy <= 0.0 {
+                    continue;
+                }
+                let (a, b) = (x + er.normal * OFF, y + es.normal * OFF);
+                let t = b - a;
+                let tl = t.length();
+                if caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
+                    continue;
+                }
+                acc += el.b[sid as usize].element_sum() * (cx * cy) as f64 / (PI * r2 as f64)
+                    * src.total();
+            }
+            Some(LinkRow {
+                class: 2 * (re.kind == Kind::Cluster) as usize
+                    + (se.kind == Kind::Cluster) as usize,
+                got,
+                want: recv.total() * acc / n as f64,
+                dist: ((re.centroid - se.centroid).length() / diam(re).max(diam(se))) as f64,
+            })
+        })
+        .collect();
+    println!(
+        "{} links, {} audited, {n} samples each",
+        set.links.len(),
+        rows.len()
+    );
+    let names = [
+        "surface <- surface",
+        "surface <- cluster",
+        "cluster <- surface",
+        "cluster <- cluster",
+    ];
+    let bins = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0, f64::INFINITY];
+    for (class, name) in names.iter().enumerate() {
+        let sum = |f: &dyn Fn(&LinkRow) -> bool| {
+            rows.iter()
+                .filter(|r| r.class == class && f(r))
+                .fold((0usize, 0.0, 0.0), |a, r| {
+                    (a.0 + 1, a.1 + r.got, a.2 + r.want)
+                })
+        };
+        let (c, g, w) = sum(&|_| true);
+        println!(
+            "{name}: {c} links, delivered {g:.4} W, Monte Carlo {w:.4} W, ratio {:.4}",
+            g / w
+        );
+        for b in bins.windows(2) {
+            let (c, g, w) = sum(&|r| r.dist >= b[0] && r.dist < b[1]);
+            if c > 0 {
+                println!("  distance/diameter [{:4}, {:4}): {c:8} links, {g:10.4} W against {w:10.4} W, ratio {:.4}", b[0], b[1], g / w);
+            }
+        }
+    }
+}
+
+fn main() {
+    let o = parse();
+    let scene = Scene::load(&o.scene, &SceneOptions::default()).expect("scene");
+    let strategy = Strategy::parse(&o.clustering).expect("clustering");
+    let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
+    let mut cfg = SolverConfig::preset(&o.preset).expect("preset");
+    cfg.two_sided = o.two_sided;
+    if let Some(v) = &o.visibility {
+        cfg.visibility = VisibilityMode::parse(v).expect("visibility");
+    }
+    let t = std::time::Instant::now();
+    let sol = solve(&scene, &tree, &cfg, &NoProgress).expect("solve");
+    let p = &sol.stats.power;
+    println!(
+        "solve {:.1} s; emitted {:.2} W, emitted − absorbed {:.2} W (channel sums)",
+        t.elapsed().as_secs_f64(),
+        p.emitted,
+        p.escaping
+    );
+    let caster = RayCaster::new(&scene, &tree);
+    match o.mode.as_str() {
+        "irradiance" => irradiance(&o, &scene, &caster, &sol),
+        "self" => self_consistency(&o, &scene, &caster, &sol),
+        "links" => links(&o, &scene, &tree, &caster, &sol),
+        m => panic!("unknown mode {m}"),
+    }
+}
