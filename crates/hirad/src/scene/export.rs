@@ -1,11 +1,13 @@
 //! Writing scenes and per-vertex results (OBJ, glTF binary, PLY), atomically.
 //!
 //! Coloured meshes ([`ColoredMesh`], the solver's output; colours are radiosity B in W/m²):
-//! - `.glb`: one mesh with `POSITION`, `COLOR_0` = linear B (float RGB, unclamped) and
-//!   `COLOR_1` = the display variant clamp(B / white, 0, 1) (float RGB, linear: a viewer's sRGB
-//!   output encoding turns it into the tone-mapped sRGB image), with an unlit material
+//! - `.glb`: one mesh with `POSITION`, `COLOR_0` = the display colour clamp(B / white, 0, 1)
+//!   (float RGB, linear, within glTF's 0..1 for colours: a viewer's sRGB output encoding turns
+//!   it into the tone-mapped sRGB image) and `_RADIOSITY` = linear B (float RGB, unclamped; an
+//!   application attribute, which [`read_colored_mesh`] returns), with an unlit material
 //!   (`KHR_materials_unlit`) so viewers show the vertex colours. `white` is the 99th percentile
-//!   of the per-vertex maximum channel ([`tonemap_white`]).
+//!   of the per-vertex maximum channel ([`tonemap_white`]), recorded as `radiosity_white` in
+//!   the asset's `extras`.
 //! - `.ply`: binary little endian; per vertex `float x y z`, `uchar red green blue` = sRGB of the
 //!   tone-mapped colour (what viewers display) and `float radiosity_r radiosity_g radiosity_b`
 //!   = linear B (what [`read_colored_mesh`] returns); `list uchar uint vertex_indices`.
@@ -229,7 +231,11 @@ impl GlbBuilder {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
+        let extras = doc.get("asset").and_then(|a| a.get("extras")).cloned();
         doc["asset"] = json!({"version": "2.0", "generator": format!("hirad {}", crate::VERSION)});
+        if let Some(e) = extras {
+            doc["asset"]["extras"] = e;
+        }
         doc["buffers"] = json!([{"byteLength": self.bin.len()}]);
         doc["bufferViews"] = Value::Array(self.views);
         doc["accessors"] = Value::Array(self.accessors);
@@ -256,37 +262,41 @@ fn write_colored_glb(path: &Path, mesh: &ColoredMesh) -> Result<()> {
     let white = tonemap_white(&mesh.colors);
     let mut b = GlbBuilder::default();
     let pos = b.vec3(&mesh.positions, true);
-    let c0 = b.vec3(&mesh.colors, false);
+    let radiosity = b.vec3(&mesh.colors, false);
     let display: Vec<Vec3> = mesh
         .colors
         .iter()
         .map(|&c| display_linear(c, white))
         .collect();
-    let c1 = b.vec3(&display, false);
+    let c0 = b.vec3(&display, false);
     let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let ind = b.indices(&flat);
     let doc = json!({
+        "asset": {"extras": {"radiosity_white": white}},
         "extensionsUsed": ["KHR_materials_unlit"],
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": "radiosity"}],
         "meshes": [{"name": "radiosity", "primitives": [{
-            "attributes": {"POSITION": pos, "COLOR_0": c0, "COLOR_1": c1},
+            "attributes": {"POSITION": pos, "COLOR_0": c0, "_RADIOSITY": radiosity},
             "indices": ind, "material": 0, "mode": 4
         }]}],
         "materials": [{
             "name": "vertex_colors",
             "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
                                      "metallicFactor": 0.0, "roughnessFactor": 1.0},
-            "extensions": {"KHR_materials_unlit": {}},
-            "extras": {"COLOR_1_white": white}
+            "extensions": {"KHR_materials_unlit": {}}
         }],
     });
     write_bytes_atomic(path, &b.finish(doc))
 }
 
+/// The glTF attribute holding linear radiosity B.
+const RADIOSITY: &str = "_RADIOSITY";
+
 /// Read back a coloured mesh written by [`write_colored_mesh`] (`.glb` or `.ply`). Colours are
-/// the linear ones (`COLOR_0`, `radiosity_*`), or the display colours when a file has only those.
+/// the linear ones (`_RADIOSITY`, `radiosity_*`), or the display colours (`COLOR_0`, the PLY's
+/// bytes) when a file has only those.
 pub fn read_colored_mesh(path: &Path) -> Result<ColoredMesh> {
     match ext_of(path).as_str() {
         "ply" => {
@@ -327,9 +337,21 @@ fn read_colored_gltf(path: &Path) -> Result<ColoredMesh> {
                 };
                 out.positions.extend(p.map(Vec3::from));
                 let n = out.positions.len() - base as usize;
-                match reader.read_colors(0) {
-                    Some(c) => out.colors.extend(c.into_rgb_f32().map(Vec3::from)),
-                    None => out.colors.extend(std::iter::repeat_n(Vec3::ZERO, n)),
+                let radiosity = prim
+                    .get(&gltf::Semantic::Extras(RADIOSITY[1..].into()))
+                    .filter(|a| {
+                        a.data_type() == gltf::accessor::DataType::F32
+                            && a.dimensions() == gltf::accessor::Dimensions::Vec3
+                    })
+                    .and_then(|a| {
+                        gltf::accessor::Iter::<[f32; 3]>::new(a, |b: gltf::Buffer| {
+                            buffers.get(b.index()).map(|d| &d.0[..])
+                        })
+                    });
+                match (radiosity, reader.read_colors(0)) {
+                    (Some(r), _) => out.colors.extend(r.map(Vec3::from)),
+                    (None, Some(c)) => out.colors.extend(c.into_rgb_f32().map(Vec3::from)),
+                    (None, None) => out.colors.extend(std::iter::repeat_n(Vec3::ZERO, n)),
                 }
                 let idx: Vec<u32> = match reader.read_indices() {
                     Some(i) => i.into_u32().collect(),
@@ -582,6 +604,22 @@ mod tests {
             let p = d.path().join(format!("m.{ext}"));
             write_colored_mesh(&p, &mesh()).unwrap();
             assert_eq!(read_colored_mesh(&p).unwrap(), mesh(), "{ext}");
+        }
+    }
+
+    #[test]
+    fn glb_colour_is_the_clamped_display_colour() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("m.glb");
+        write_colored_mesh(&p, &mesh()).unwrap();
+        let (doc, buffers, _) = gltf::import(&p).unwrap();
+        let prim = doc.meshes().next().unwrap().primitives().next().unwrap();
+        let r = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let c: Vec<[f32; 3]> = r.read_colors(0).unwrap().into_rgb_f32().collect();
+        let white = tonemap_white(&mesh().colors);
+        for (c, b) in c.iter().zip(mesh().colors) {
+            assert_eq!(Vec3::from(*c), display_linear(b, white));
+            assert!(c.iter().all(|v| (0.0..=1.0).contains(v)), "{c:?}");
         }
     }
 
