@@ -409,6 +409,8 @@ struct LinkRow {
     class: usize,
     got: f64,
     want: f64,
+    /// The part of `want` on surfaces of a cluster receiver that its hand-out gives nothing.
+    want_unhanded: f64,
     dist: f64,
 }
 
@@ -468,9 +470,11 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
             }
             let src = ByArea::new(leaves, |s| el.elems[s as usize].area as f64);
             let mut rng = SplitMix64::new(li as u64 * 977 + 5);
-            let mut acc = 0.0;
+            let (mut acc, mut acc_zero) = (0.0, 0.0);
             for _ in 0..n {
                 let er = &el.elems[recv.pick(&mut rng) as usize];
+                let handed = re.kind == Kind::Surface
+                    || facing_weight(er.centroid, er.normal, se.centroid, se.facing_normal()) > 0.0;
                 let x = sample_triangle(&er.verts, rng.next_f32(), rng.next_f32());
                 let sid = src.pick(&mut rng);
                 let es = &el.elems[sid as usize];
@@ -488,14 +492,19 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                 if caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
                     continue;
                 }
-                acc += el.b[sid as usize].element_sum() * (cx * cy) as f64 / (PI * r2 as f64)
+                let v = el.b[sid as usize].element_sum() * (cx * cy) as f64 / (PI * r2 as f64)
                     * src.total();
+                acc += v;
+                if !handed {
+                    acc_zero += v;
+                }
             }
             Some(LinkRow {
                 class: 2 * (re.kind == Kind::Cluster) as usize
                     + (se.kind == Kind::Cluster) as usize,
                 got,
                 want: recv.total() * acc / n as f64,
+                want_unhanded: recv.total() * acc_zero / n as f64,
                 dist: ((re.centroid - se.centroid).length() / diam(re).max(diam(se))) as f64,
             })
         })
@@ -525,6 +534,19 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
             "{name}: {c} links, delivered {g:.4} W, Monte Carlo {w:.4} W, ratio {:.4}",
             g / w
         );
+        if class >= 2 {
+            let unhanded = |near: bool| -> f64 {
+                rows.iter()
+                    .filter(|r| r.class == class && (!near || r.dist < 1.0))
+                    .map(|r| r.want_unhanded)
+                    .sum()
+            };
+            println!(
+                "  Monte Carlo on surfaces the hand-out gives nothing: {:.4} W ({:.4} W at distance/diameter below 1)",
+                unhanded(false),
+                unhanded(true)
+            );
+        }
         for b in bins.windows(2) {
             let (c, g, w) = sum(&|r| r.dist >= b[0] && r.dist < b[1]);
             if c > 0 {
