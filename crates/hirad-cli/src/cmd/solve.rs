@@ -20,8 +20,12 @@ use std::time::Instant;
 pub struct Args {
     /// Scene: a file path or a built-in name.
     pub scene: String,
+    /// Reflectance channels equal to 1 are clamped to this value.
+    #[arg(long, default_value_t = 0.95)]
+    pub max_reflectance: f32,
+    /// Viewpoint of the image (`--up y|z` also sets the scene's up axis).
     #[command(flatten)]
-    pub load: super::info::LoadArgs,
+    pub camera: super::image_args::CameraArgs,
     /// Clustering strategy (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah).
     #[arg(long, default_value = "proxi")]
     pub clustering: String,
@@ -147,7 +151,11 @@ impl Args {
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let cfg = args.config()?;
     let strategy = Strategy::parse(&args.clustering)?;
-    let scene = super::load_scene(&args.scene, &args.load.options())?;
+    let opts = hirad::scene::SceneOptions {
+        max_reflectance: args.max_reflectance,
+        up: args.camera.scene_up(),
+    };
+    let scene = super::load_scene(&args.scene, &opts)?;
     let t = Instant::now();
     let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
     let cluster_seconds = t.elapsed().as_secs_f64();
@@ -176,7 +184,9 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         .with_context(|| format!("writing the solution into {}", args.out.display()))?;
     {
         let mesh = output::radiosity_mesh(&sol, &scene, args.flat);
-        let view = hirad::render::CameraView::from_camera(&scene.default_camera());
+        let view = args.camera.apply(hirad::render::CameraView::from_camera(
+            &scene.default_camera(),
+        ))?;
         let mut ropts = args.raster.options();
         if cfg.two_sided {
             // The solution mesh carries explicit back faces.
