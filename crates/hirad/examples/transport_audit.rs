@@ -13,6 +13,8 @@
 //!                     distance over the larger end's diameter
 //!   --two-sided  --preset P  --clustering S  --visibility V  --samples N (per object; per
 //!   link N/100, at least 16)  --object NAME (links: only links into that object)
+//!   --source-mean (links: Monte Carlo with the source element's mean radiosity, as the link
+//!   transfers it, instead of that of the leaf each sample lands on)
 //! ```
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -39,6 +41,7 @@ struct Opts {
     visibility: Option<String>,
     samples: usize,
     object: Option<String>,
+    source_mean: bool,
 }
 
 fn parse() -> Opts {
@@ -54,6 +57,7 @@ fn parse() -> Opts {
         visibility: None,
         samples: 20_000,
         object: None,
+        source_mean: false,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -64,6 +68,7 @@ fn parse() -> Opts {
             "--visibility" => o.visibility = Some(val()),
             "--samples" => o.samples = val().parse().expect("--samples N"),
             "--object" => o.object = Some(val()),
+            "--source-mean" => o.source_mean = true,
             m if !m.starts_with("--") => o.mode = m.into(),
             _ => panic!("unknown option {x}"),
         }
@@ -418,6 +423,7 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
     let el = &sol.elements;
     let set = &sol.links;
     let n = (o.samples / 100).max(16);
+    let avg_b = o.source_mean;
     let diam = |e: &Element| match e.kind {
         Kind::Cluster => {
             let b = &tree.nodes[e.tri as usize].bbox;
@@ -492,7 +498,9 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                 if caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
                     continue;
                 }
-                let v = el.b[sid as usize].element_sum() * (cx * cy) as f64 / (PI * r2 as f64)
+                let v = el.b[if avg_b { l.src } else { sid } as usize].element_sum()
+                    * (cx * cy) as f64
+                    / (PI * r2 as f64)
                     * src.total();
                 acc += v;
                 if !handed {
