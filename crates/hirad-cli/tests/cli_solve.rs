@@ -44,3 +44,34 @@ fn solve_image_takes_the_camera_flags() {
         .arg(&dflt));
     assert_ne!(Image::read(&dflt).unwrap().pixels, img.pixels);
 }
+
+/// Choices parse in any case; `solve --clustering all` is refused with a list that does not
+/// offer `all` (exit 2: a usage error), while `clusters --clustering all` takes it.
+#[test]
+fn choices_parse_in_any_case() {
+    let d = tempfile::tempdir().unwrap();
+    ok(hirad().args([
+        "-q",
+        "solve",
+        "cornell",
+        "--preset",
+        "Fast",
+        "--clustering",
+        "PROXI",
+        "--refine",
+        "BF",
+        "--visibility",
+        "Rays",
+        "--bench",
+    ]));
+    let o = hirad()
+        .args(["-q", "solve", "cornell", "--clustering", "all", "--out"])
+        .arg(d.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("unknown clustering strategy 'all'"), "{err}");
+    assert!(!err.contains(", all"), "{err}");
+    ok(hirad().args(["-q", "clusters", "cornell", "--clustering", "ALL"]));
+}

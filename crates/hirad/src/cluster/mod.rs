@@ -73,7 +73,7 @@ impl Strategy {
             .find(|x| x.name() == s.to_ascii_lowercase())
             .ok_or_else(|| {
                 Error::Config(format!(
-                    "unknown clustering strategy '{s}' (one of: {}, all)",
+                    "unknown clustering strategy '{s}' (one of: {})",
                     Strategy::ALL.map(|x| x.name()).join(", ")
                 ))
             })
@@ -84,7 +84,14 @@ impl Strategy {
         if s.eq_ignore_ascii_case("all") {
             return Ok(Strategy::ALL.to_vec());
         }
-        s.split(',').map(|x| Strategy::parse(x.trim())).collect()
+        s.split(',')
+            .map(|x| {
+                Strategy::parse(x.trim()).map_err(|e| match e {
+                    Error::Config(m) => Error::Config(format!("{m}, a list of them, or all")),
+                    e => e,
+                })
+            })
+            .collect()
     }
 }
 

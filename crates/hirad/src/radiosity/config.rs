@@ -141,7 +141,7 @@ impl SolverConfig {
     /// `reference` (ε/16, 16 rays, elements /4).
     pub fn preset(name: &str) -> Result<SolverConfig> {
         let d = SolverConfig::default();
-        Ok(match name {
+        Ok(match name.to_ascii_lowercase().as_str() {
             "fast" => SolverConfig {
                 eps_rel: d.eps_rel * 4.0,
                 shadow_rays: 1,
