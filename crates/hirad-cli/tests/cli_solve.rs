@@ -1,4 +1,5 @@
-//! `hirad solve` end to end: the spec's camera flags on the image it writes.
+//! `hirad solve` end to end: the spec's camera flags on the image it writes; choices and usage
+//! errors.
 
 use hirad::render::Image;
 use std::process::Command;
@@ -74,4 +75,13 @@ fn choices_parse_in_any_case() {
     assert!(err.contains("unknown clustering strategy 'all'"), "{err}");
     assert!(!err.contains(", all"), "{err}");
     ok(hirad().args(["-q", "clusters", "cornell", "--clustering", "ALL"]));
+}
+
+/// `hirad study` without a scene is a usage error: exit 2.
+#[test]
+fn study_without_a_scene_exits_2() {
+    let o = hirad().args(["-q", "study"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("a scene is required"), "{err}");
 }

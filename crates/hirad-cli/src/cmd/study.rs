@@ -207,10 +207,10 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         eprintln!("merged {n} results into {}", into.display());
         return report(&into, 0.0, g.quiet);
     }
-    let scene = a
-        .scene
-        .clone()
-        .ok_or_else(|| anyhow::anyhow!("a scene is required (or `hirad study merge DIR...`)"))?;
+    let scene = a.scene.clone().ok_or_else(|| {
+        // A usage error (exit 2), like the parser's own.
+        hirad::Error::Config("a scene is required (or `hirad study merge DIR...`)".into())
+    })?;
     let cfg = config(&a, &scene)?;
     let cancel = Arc::new(AtomicBool::new(false));
     {
