@@ -85,3 +85,54 @@ fn study_without_a_scene_exits_2() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("a scene is required"), "{err}");
 }
+
+/// Every option that takes a value says in its help what it is when not given (or that it is
+/// required), in every command.
+#[test]
+fn every_option_shows_its_default() {
+    let cmds = [
+        "info",
+        "scene",
+        "clusters",
+        "raybench",
+        "solve",
+        "render",
+        "diff",
+        "reference",
+        "study",
+        "validate",
+    ];
+    for c in cmds {
+        let o = hirad().args([c, "--help"]).output().unwrap();
+        let help = String::from_utf8_lossy(&o.stdout);
+        let opts = help.split("Options:").nth(1).unwrap_or("");
+        // One entry per option: from a line starting with `-x, --` or `--` to the next.
+        let mut entries: Vec<String> = Vec::new();
+        for line in opts.lines() {
+            let t = line.trim_start();
+            if t.starts_with("--") || (t.starts_with('-') && t.get(2..6) == Some(", --")) {
+                entries.push(t.to_string());
+            } else if let Some(e) = entries.last_mut() {
+                e.push(' ');
+                e.push_str(t);
+            }
+        }
+        for e in entries {
+            let name = e
+                .split_whitespace()
+                .find(|w| w.starts_with("--"))
+                .unwrap_or("");
+            let takes_value = e
+                .split_whitespace()
+                .nth(if e.starts_with("--") { 1 } else { 2 })
+                .is_some_and(|w| w.starts_with('<'));
+            let lower = e.to_lowercase();
+            if takes_value {
+                assert!(
+                    lower.contains("default") || lower.contains("required"),
+                    "hirad {c} {name}: no default in its help: {e}"
+                );
+            }
+        }
+    }
+}

@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long)]
     pub repeat: Option<usize>,
     /// Write the cluster boxes as a wireframe (.obj or .ply); with several strategies the
-    /// strategy name is inserted before the extension.
+    /// strategy name is inserted before the extension [default: none].
     #[arg(long)]
     pub dump: Option<PathBuf>,
     /// Depth of the boxes to dump, or `all`.

@@ -18,13 +18,13 @@ pub struct Args {
     pub image: PathBuf,
     /// Reference image (`.exr` or `.png`), same size.
     pub reference: PathBuf,
-    /// Write a false-colour ΔE image (`.png` or `.exr`).
+    /// Write a false-colour ΔE image (`.png` or `.exr`) [default: none].
     #[arg(long)]
     pub heatmap: Option<PathBuf>,
     /// ΔE shown at the top of the heatmap scale (default: the 99th percentile of ΔE).
     #[arg(long)]
     pub heatmap_max: Option<f32>,
-    /// Use this white luminance Yn instead of the reference's 99th percentile.
+    /// White luminance Yn [default: the reference's 99th percentile].
     #[arg(long)]
     pub white: Option<f64>,
 }

@@ -77,19 +77,20 @@ pub fn parse_fov(s: &str) -> Result<f32, String> {
 /// Camera flags overriding the scene's default viewpoint.
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct CameraArgs {
-    /// Eye position x,y,z.
+    /// Eye position x,y,z [default: the scene camera's].
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<Vec3>,
-    /// Point looked at x,y,z.
+    /// Point looked at x,y,z [default: the scene camera's].
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub target: Option<Vec3>,
-    /// Up: an axis `y`/`z` (scene up axis and camera up) or a camera up vector x,y,z.
+    /// Up: an axis `y`/`z` (scene up axis and camera up) or a camera up vector x,y,z [default:
+    /// the scene's up axis].
     #[arg(long, value_parser = parse_up, allow_hyphen_values = true)]
     pub up: Option<UpArg>,
-    /// Vertical field of view, degrees.
+    /// Vertical field of view, degrees [default: the scene camera's].
     #[arg(long, value_parser = parse_fov)]
     pub fov: Option<f32>,
-    /// Image size WxH in pixels.
+    /// Image size WxH in pixels [default: the scene camera's].
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
 }
@@ -130,7 +131,8 @@ impl CameraArgs {
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ImageArgs {
     /// Output image: `.exr` (linear) or `.png` (sRGB), by extension; a directory (existing, or
-    /// a path without extension) receives both.
+    /// a path without extension) receives both [default: none; `solve` writes image.exr and
+    /// image.png into --out].
     #[arg(long)]
     pub image: Option<PathBuf>,
     /// PNG exposure in stops (pixels × 2^exposure before the sRGB transfer and clamping), or

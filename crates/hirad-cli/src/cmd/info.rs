@@ -6,7 +6,8 @@ use hirad::scene::{SceneOptions, UpAxis};
 /// Scene-loading options shared by subcommands that load a scene (flatten into their `Args`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct LoadArgs {
-    /// Up axis of the scene, overriding what the file says (y or z).
+    /// Up axis of the scene, overriding what the file says (y or z) [default: the file's, else
+    /// y].
     #[arg(long, value_parser = parse_up)]
     pub up: Option<UpAxis>,
     /// Reflectance channels equal to 1 are clamped to this value.

@@ -43,7 +43,7 @@ pub struct Args {
     pub boxes: String,
     /// Also write the triangles and segments to FILE, for casting the same segments with
     /// another program (little-endian: u32 triangle count, 9 f32 per triangle in scene order,
-    /// u32 segment count, 8 f32 per segment: origin, direction, tmin, tmax)
+    /// u32 segment count, 8 f32 per segment: origin, direction, tmin, tmax) [default: none]
     #[arg(long, value_name = "FILE")]
     pub export: Option<std::path::PathBuf>,
 }

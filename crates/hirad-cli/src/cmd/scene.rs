@@ -9,7 +9,7 @@ pub struct Args {
     /// Scene: a built-in name or a file path.
     pub scene: String,
     /// Output file: `.obj` (writes a `.mtl` next to it), `.glb`, or `.toml` (writes `.obj` and
-    /// `.mtl` next to it; keeps sun, sky and cameras).
+    /// `.mtl` next to it; keeps sun, sky and cameras) (required).
     #[arg(long, short)]
     pub out: std::path::PathBuf,
     #[command(flatten)]

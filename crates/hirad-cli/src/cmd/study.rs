@@ -31,13 +31,14 @@ pub struct Args {
     /// Default 8, or 0 with `--visibility volume` (that study is the §5 experiment).
     #[arg(long)]
     pub tolerances: Option<usize>,
-    /// Explicit relative ε values, comma-separated (overrides --tolerances).
+    /// Explicit relative ε values, comma-separated (overrides --tolerances) [default: none].
     #[arg(long, value_delimiter = ',')]
     pub eps_list: Vec<f64>,
-    /// Largest and smallest relative ε of the series; without them the range is calibrated by
-    /// probe solves so that 30–100% of the energy goes through cluster links.
+    /// Largest relative ε of the series [default: calibrated by probe solves so that 30–100% of
+    /// the energy goes through cluster links].
     #[arg(long)]
     pub eps_hi: Option<f64>,
+    /// Smallest relative ε of the series [default: calibrated with --eps-hi].
     #[arg(long)]
     pub eps_lo: Option<f64>,
     /// Visibility of the solves: rays or volume (volume also runs the §5 experiment:
@@ -82,7 +83,8 @@ pub struct Args {
     /// the output directories afterwards with `hirad study merge`.
     #[arg(long)]
     pub jobs: bool,
-    /// Run only the units whose key starts with this (repeatable), e.g. `solve/okdt`.
+    /// Run only the units whose key starts with this (repeatable), e.g. `solve/okdt` [default:
+    /// every unit].
     #[arg(long)]
     pub only: Vec<String>,
 }
