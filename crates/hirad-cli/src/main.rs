@@ -8,7 +8,15 @@ use clap::{Parser, Subcommand};
 
 /// Hierarchical radiosity with clustering.
 #[derive(Parser, Debug)]
-#[command(name = "hirad", version, about, long_about = None, after_help = EXAMPLES)]
+#[command(
+    name = "hirad",
+    version,
+    about = "hirad: hierarchical radiosity with clustering — bake diffuse lighting of a scene \
+             (OBJ, glTF, PLY, TOML) into glTF/PLY, render and compare it with a path tracer, \
+             and run the clustering studies of Hasenfratz et al. (EG'99)",
+    long_about = None,
+    after_help = EXAMPLES
+)]
 struct Cli {
     #[command(flatten)]
     global: Global,
@@ -17,7 +25,12 @@ struct Cli {
 }
 
 const EXAMPLES: &str = "Examples:
-  hirad info office                          counts, area, materials of a built-in scene
+  hirad solve office --out out               bake radiosity: out/solution.glb, .ply, image, stats
+  hirad render out/solution.glb --scene office --eye 1,-1,1.6 --image view.png
+  hirad reference office --spp 256 --image ref.exr     path-traced image of the same view
+  hirad diff out/image.exr ref.exr           CIELUV error (RMS ΔE*uv, mean luminance ratio)
+  hirad validate office                      all of the above against two path-traced seeds
+  hirad study cornell --out study            the paper's experiments, plots and report
   hirad info ../shared/scenes/bathroom/bathroom.obj --json
   hirad scene cornell --out cornell.obj      write a built-in scene to a file
   hirad clusters office --clustering all     statistics of every clustering strategy

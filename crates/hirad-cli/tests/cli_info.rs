@@ -143,3 +143,39 @@ fn validate_compares_the_solution_with_two_references() {
     assert_eq!(v["width"], 64);
     assert!(v["links"].as_u64().unwrap() > 0);
 }
+
+#[test]
+fn info_table_prints_units() {
+    let o = hirad().args(["info", "office"]).output().unwrap();
+    assert!(o.status.success());
+    let t = String::from_utf8_lossy(&o.stdout);
+    for (row, unit) in [
+        ("total area", "scene units²"),
+        ("bbox", "scene units"),
+        ("emitted power", " W per RGB channel"),
+        ("load time", " s"),
+    ] {
+        let line = t.lines().find(|l| l.starts_with(row)).unwrap_or("");
+        assert!(line.contains(unit), "{row}: {line}");
+    }
+}
+
+#[test]
+fn top_level_help_says_what_hirad_is() {
+    let o = hirad().arg("--help").output().unwrap();
+    let t = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        t.lines()
+            .next()
+            .unwrap_or("")
+            .starts_with("hirad: hierarchical radiosity"),
+        "{t}"
+    );
+    for c in ["solve", "study", "render", "diff", "reference", "validate"] {
+        assert!(
+            t.lines()
+                .any(|l| l.trim_start().starts_with(&format!("hirad {c} "))),
+            "no example of {c}: {t}"
+        );
+    }
+}

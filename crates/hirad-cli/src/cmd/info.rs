@@ -80,11 +80,11 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
                 )
             },
         ),
-        ("total area", format!("{:.6}", s.total_area)),
+        ("total area", format!("{:.6} scene units²", s.total_area)),
         (
             "bbox",
             format!(
-                "({:.3}, {:.3}, {:.3}) -> ({:.3}, {:.3}, {:.3})",
+                "({:.3}, {:.3}, {:.3}) -> ({:.3}, {:.3}, {:.3}) scene units",
                 s.bbox_min.x, s.bbox_min.y, s.bbox_min.z, s.bbox_max.x, s.bbox_max.y, s.bbox_max.z
             ),
         ),
@@ -98,7 +98,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         (
             "emitted power",
             format!(
-                "({:.6e}, {:.6e}, {:.6e})",
+                "({:.6e}, {:.6e}, {:.6e}) W per RGB channel (scene units as metres)",
                 s.emitted_power[0], s.emitted_power[1], s.emitted_power[2]
             ),
         ),
@@ -107,7 +107,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             s.sun
                 .map(|sun| {
                     format!(
-                        "direction {:?}, irradiance {:?}",
+                        "direction {:?}, irradiance {:?} W/m²",
                         sun.direction.to_array(),
                         sun.irradiance.to_array()
                     )
@@ -117,7 +117,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         (
             "sky",
             s.sky
-                .map(|k| format!("{:?}", k.to_array()))
+                .map(|k| format!("radiance {:?} W/(m²·sr)", k.to_array()))
                 .unwrap_or_else(|| "none".into()),
         ),
         (
