@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand};
 #[derive(Parser, Debug)]
 #[command(
     name = "hirad",
-    version,
+    version = concat!(env!("CARGO_PKG_VERSION"), " (commit ", env!("HIRAD_BUILD_COMMIT"), ")"),
     about = "hirad: hierarchical radiosity with clustering — bake diffuse lighting of a scene \
              (OBJ, glTF, PLY, TOML) into glTF/PLY, render and compare it with a path tracer, \
              and run the clustering studies of Hasenfratz et al. (EG'99)",
@@ -78,6 +78,7 @@ enum Command {
 }
 
 fn main() {
+    hirad::study::records::set_build_commit(env!("HIRAD_BUILD_COMMIT"));
     let cli = Cli::parse();
     init_logging(&cli.global);
     if let Some(n) = cli.global.threads {

@@ -179,3 +179,21 @@ fn top_level_help_says_what_hirad_is() {
         );
     }
 }
+
+/// The binary names the commit it was built from (embedded by build.rs), as run records do.
+#[test]
+fn version_names_the_build_commit() {
+    let o = hirad().arg("--version").output().unwrap();
+    let v = String::from_utf8_lossy(&o.stdout).to_string();
+    let head = Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match head {
+        Some(h) => assert!(v.contains(&format!("(commit {h}")), "{v} against HEAD {h}"),
+        None => assert!(v.contains("(commit "), "{v}"),
+    }
+}

@@ -60,29 +60,21 @@ impl RunMeta {
     }
 }
 
-/// Commit of the source tree this binary was built from: `HIRAD_GIT_COMMIT` when set (a binary
-/// built outside a checkout), else asked of git at run time, since the binary usually runs next
-/// to its checkout; "unknown" when neither answers.
+static BUILD_COMMIT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// Record the commit the running binary was built from (the `hirad` binary embeds it at build
+/// time: 12 hex digits, `-dirty` when tracked files differed from it). First call wins.
+pub fn set_build_commit(commit: &str) {
+    let _ = BUILD_COMMIT.set(commit.to_string());
+}
+
+/// The commit given to [`set_build_commit`], "unknown" when none was: what run records carry,
+/// never the checkout's HEAD at run time.
 pub fn git_commit() -> String {
-    if let Some(c) = std::env::var("HIRAD_GIT_COMMIT")
-        .ok()
-        .filter(|c| !c.trim().is_empty())
-    {
-        return c.trim().to_string();
-    }
-    std::process::Command::new("git")
-        .args([
-            "-C",
-            env!("CARGO_MANIFEST_DIR"),
-            "rev-parse",
-            "--short=12",
-            "HEAD",
-        ])
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_else(|| "unknown".to_string())
+    BUILD_COMMIT
+        .get()
+        .cloned()
+        .unwrap_or_else(|| "unknown".into())
 }
 
 /// Cluster statistics and build time of one strategy (experiments.md §1).
