@@ -284,6 +284,31 @@ pub struct Study<'a> {
     pub removed_temp: usize,
     progress: &'a dyn Progress,
     cancel: &'a AtomicBool,
+    /// `<out>/.lock`, locked while the study lives ([`lock_dir`]).
+    _lock: std::fs::File,
+}
+
+/// Take the study directory `dir` (created if needed) for this process: an exclusive lock on
+/// `dir/.lock`, which the system releases when the process ends however it ends. A second
+/// study in the same directory gets an error instead of interleaving its writes.
+pub fn lock_dir(dir: &std::path::Path) -> Result<std::fs::File> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let p = dir.join(".lock");
+    let f = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&p)
+        .map_err(|e| Error::io(&p, e))?;
+    match f.try_lock() {
+        Ok(()) => Ok(f),
+        Err(std::fs::TryLockError::WouldBlock) => Err(Error::Config(format!(
+            "{}: another `hirad study` is running in this directory (it holds {})",
+            dir.display(),
+            p.display()
+        ))),
+        Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&p, e)),
+    }
 }
 
 /// Remove the temporary files (`.hirad-*.tmp`, see [`crate::io::write_atomic`]) that a killed
@@ -344,6 +369,7 @@ impl<'a> Study<'a> {
         let scene = Scene::load(&cfg.scene, &SceneOptions::default())?;
         let prims = Prims::from_scene(&scene);
         let views = viewpoints(&scene, &cfg)?;
+        let lock = lock_dir(&cfg.out)?;
         let removed_temp = remove_stale_temp(&cfg.out)?;
         let store = Store::new(&cfg.out);
         let meta = RunMeta {
@@ -361,6 +387,7 @@ impl<'a> Study<'a> {
             removed_temp,
             progress,
             cancel,
+            _lock: lock,
         })
     }
 
@@ -1010,6 +1037,17 @@ fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_study_directory_takes_one_study_at_a_time() {
+        let d = tempfile::tempdir().unwrap();
+        let dir = d.path().join("study");
+        let first = lock_dir(&dir).unwrap();
+        let err = lock_dir(&dir).unwrap_err().to_string();
+        assert!(err.contains("another `hirad study` is running"), "{err}");
+        drop(first);
+        lock_dir(&dir).unwrap();
+    }
 
     #[test]
     fn eps_series_is_geometric_and_sorted() {
