@@ -145,10 +145,10 @@ fn covering(
 ) -> Vec<u32> {
     let vi = scene.tri_vertices(i as usize);
     let ni = scene.normals[i as usize];
-    let ai = scene.areas[i as usize];
-    if ai <= 0.0 {
+    if scene.areas[i as usize] <= 0.0 {
         return Vec::new();
     }
+    let ri = rank(i);
     let edge = |v: &[Vec3; 3]| {
         (v[1] - v[0])
             .length()
@@ -171,8 +171,7 @@ fn covering(
             if j == i {
                 continue;
             }
-            let (rj, ri) = (rank(j), rank(i));
-            let owns = match rj.partial_cmp(&ri) {
+            let owns = match rank(j).partial_cmp(&ri) {
                 Some(std::cmp::Ordering::Less) => true,
                 Some(std::cmp::Ordering::Equal) => j < i,
                 _ => false,
