@@ -10,17 +10,31 @@ pub struct LoadArgs {
     /// y].
     #[arg(long, value_parser = parse_up)]
     pub up: Option<UpAxis>,
-    /// Reflectance channels equal to 1 are clamped to this value.
-    #[arg(long, default_value_t = 0.95)]
-    pub max_reflectance: f32,
+    #[command(flatten)]
+    pub reflectance: ReflectanceArgs,
 }
 
 impl LoadArgs {
     /// The library's scene options.
     pub fn options(&self) -> SceneOptions {
+        self.reflectance.options(self.up)
+    }
+}
+
+/// `--max-reflectance` alone, for commands whose `--up` is the camera flags' (`CameraArgs`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReflectanceArgs {
+    /// Reflectance channels equal to 1 are clamped to this value.
+    #[arg(long, default_value_t = 0.95)]
+    pub max_reflectance: f32,
+}
+
+impl ReflectanceArgs {
+    /// The library's scene options with up axis `up`.
+    pub fn options(&self, up: Option<UpAxis>) -> SceneOptions {
         SceneOptions {
             max_reflectance: self.max_reflectance,
-            up: self.up,
+            up,
         }
     }
 }

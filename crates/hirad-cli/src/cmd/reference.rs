@@ -11,7 +11,6 @@ use crate::Global;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::ray::RayCaster;
 use hirad::render::{CameraView, PathTracer, ReferenceOptions};
-use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,9 +38,8 @@ pub struct Args {
     /// Cluster tree used as the ray-casting accelerator.
     #[arg(long, default_value = "sah")]
     pub clustering: String,
-    /// Reflectance channels equal to 1 are clamped to this value.
-    #[arg(long, default_value_t = 0.95)]
-    pub max_reflectance: f32,
+    #[command(flatten)]
+    pub reflectance: super::info::ReflectanceArgs,
     /// Benchmark: also record the rays of a subset of rows (about 4 million rays), cast them
     /// again through the same caster and report the share of the render time that is ray
     /// casting. Writes no image unless `--image` is given.
@@ -107,10 +105,7 @@ struct Bench {
 const BENCH_RAYS: u64 = 4_000_000;
 
 pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
-    let opts = SceneOptions {
-        max_reflectance: a.max_reflectance,
-        up: a.camera.scene_up(),
-    };
+    let opts = a.reflectance.options(a.camera.scene_up());
     let scene = super::load_scene(&a.scene, &opts)?;
     let view = a
         .camera

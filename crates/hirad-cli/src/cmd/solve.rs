@@ -20,9 +20,8 @@ use std::time::Instant;
 pub struct Args {
     /// Scene: a file path or a built-in name.
     pub scene: String,
-    /// Reflectance channels equal to 1 are clamped to this value.
-    #[arg(long, default_value_t = 0.95)]
-    pub max_reflectance: f32,
+    #[command(flatten)]
+    pub reflectance: super::info::ReflectanceArgs,
     /// Viewpoint of the image (`--up y|z` also sets the scene's up axis).
     #[command(flatten)]
     pub camera: super::image_args::CameraArgs,
@@ -153,10 +152,7 @@ impl Args {
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let cfg = args.config()?;
     let strategy = Strategy::parse(&args.clustering)?;
-    let opts = hirad::scene::SceneOptions {
-        max_reflectance: args.max_reflectance,
-        up: args.camera.scene_up(),
-    };
+    let opts = args.reflectance.options(args.camera.scene_up());
     let scene = super::load_scene(&args.scene, &opts)?;
     let t = Instant::now();
     let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());

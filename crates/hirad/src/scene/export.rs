@@ -271,14 +271,14 @@ fn write_colored_glb(path: &Path, mesh: &ColoredMesh) -> Result<()> {
     let c0 = b.vec3(&display, false);
     let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let ind = b.indices(&flat);
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"extras": {"radiosity_white": white}},
         "extensionsUsed": ["KHR_materials_unlit"],
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": "radiosity"}],
         "meshes": [{"name": "radiosity", "primitives": [{
-            "attributes": {"POSITION": pos, "COLOR_0": c0, "_RADIOSITY": radiosity},
+            "attributes": {"POSITION": pos, "COLOR_0": c0},
             "indices": ind, "material": 0, "mode": 4
         }]}],
         "materials": [{
@@ -288,6 +288,7 @@ fn write_colored_glb(path: &Path, mesh: &ColoredMesh) -> Result<()> {
             "extensions": {"KHR_materials_unlit": {}}
         }],
     });
+    doc["meshes"][0]["primitives"][0]["attributes"][RADIOSITY] = json!(radiosity);
     write_bytes_atomic(path, &b.finish(doc))
 }
 
