@@ -15,6 +15,8 @@
 //!   link N/100, at least 16)  --object NAME (links: only links into that object)
 //!   --source-mean (links: Monte Carlo with the source element's mean radiosity, as the link
 //!   transfers it, instead of that of the leaf each sample lands on)
+//!   --rays N  --eps-rel X  --min-area-rel X  override the preset's solver settings;
+//!   --iters N stops the solver after N iterations (1: direct light only)
 //! ```
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -42,6 +44,10 @@ struct Opts {
     samples: usize,
     object: Option<String>,
     source_mean: bool,
+    rays: Option<u32>,
+    eps_rel: Option<f64>,
+    min_area_rel: Option<f64>,
+    iters: Option<u32>,
 }
 
 fn parse() -> Opts {
@@ -58,6 +64,10 @@ fn parse() -> Opts {
         samples: 20_000,
         object: None,
         source_mean: false,
+        rays: None,
+        eps_rel: None,
+        min_area_rel: None,
+        iters: None,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -69,6 +79,10 @@ fn parse() -> Opts {
             "--samples" => o.samples = val().parse().expect("--samples N"),
             "--object" => o.object = Some(val()),
             "--source-mean" => o.source_mean = true,
+            "--rays" => o.rays = Some(val().parse().expect("--rays N")),
+            "--eps-rel" => o.eps_rel = Some(val().parse().expect("--eps-rel X")),
+            "--min-area-rel" => o.min_area_rel = Some(val().parse().expect("--min-area-rel X")),
+            "--iters" => o.iters = Some(val().parse().expect("--iters N")),
             m if !m.starts_with("--") => o.mode = m.into(),
             _ => panic!("unknown option {x}"),
         }
@@ -571,6 +585,18 @@ fn main() {
     let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
     let mut cfg = SolverConfig::preset(&o.preset).expect("preset");
     cfg.two_sided = o.two_sided;
+    if let Some(n) = o.rays {
+        cfg.shadow_rays = n;
+    }
+    if let Some(e) = o.eps_rel {
+        cfg.eps_rel = e;
+    }
+    if let Some(m) = o.min_area_rel {
+        cfg.min_area_rel = m;
+    }
+    if let Some(n) = o.iters {
+        cfg.max_iters = n;
+    }
     if let Some(v) = &o.visibility {
         cfg.visibility = VisibilityMode::parse(v).expect("visibility");
     }

@@ -253,3 +253,101 @@ fn lamp_flush_with_a_tessellated_ceiling_shines() {
         );
     }
 }
+
+/// The six faces of the box `[lo, hi]`, facing out (one group).
+fn box_outward(lo: Vec3, hi: Vec3, mat: u32, group: u32) -> Vec<Quad> {
+    let d = hi - lo;
+    let (x, y, z) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+    vec![
+        rect(lo, y, x, mat, group),
+        rect(lo + z, x, y, mat, group),
+        rect(lo, x, z, mat, group),
+        rect(lo + y, z, x, mat, group),
+        rect(lo, z, y, mat, group),
+        rect(lo + x, y, z, mat, group),
+    ]
+}
+
+fn furnished_room(gap: f32) -> Scene {
+    let (lo, hi) = (Vec3::ZERO, Vec3::new(4.0, 3.0, 2.5));
+    let mut q: Vec<Quad> = box_inward(lo, hi, WALL, 0);
+    let b = |l: [f32; 3], h: [f32; 3], g: u32| {
+        box_outward(Vec3::from(l) + gap, Vec3::from(h) - gap, WALL, g)
+    };
+    // Lamp box 5 cm under the ceiling; its underside emits.
+    let lamp = box_outward(
+        Vec3::new(1.4, 1.35, 2.4),
+        Vec3::new(2.6, 1.65, 2.45),
+        WALL,
+        6,
+    );
+    q.extend(lamp.into_iter().skip(1));
+    q.push(rect(
+        Vec3::new(1.4, 1.35, 2.4),
+        Vec3::Y * 0.3,
+        Vec3::X * 1.2,
+        LAMP,
+        6,
+    ));
+    q.extend(b([0.0, 0.0, 0.0], [0.8, 0.6, 0.6], 7));
+    q.extend(b([0.1, 0.1, 0.6], [0.6, 0.5, 1.0], 7));
+    q.extend(b([0.8, 0.0, 0.0], [1.2, 0.4, 0.4], 7));
+    q.extend(b([2.0, 1.0, 0.72], [3.2, 1.8, 0.75], 8));
+    for (x, y) in [(2.0, 1.0), (3.15, 1.0), (2.0, 1.75), (3.15, 1.75)] {
+        q.extend(b([x, y, 0.0], [x + 0.05, y + 0.05, 0.72], 8));
+    }
+    q.extend(b([3.7, 0.5, 1.2], [4.0, 2.5, 1.22], 9));
+    for k in 0..24 {
+        let y = 0.55 + 0.08 * k as f32;
+        q.extend(b([3.72, y, 1.22], [3.97, y + 0.075, 1.47], 9));
+    }
+    quads_scene(
+        &q,
+        vec![
+            Material::diffuse("wall", Vec3::splat(0.7)),
+            Material {
+                name: "lamp".into(),
+                rho: Vec3::splat(0.7),
+                emission: Vec3::splat(10.0),
+            },
+        ],
+    )
+}
+
+/// A closed room furnished with solids (crates stacked on the floor and against two walls, a
+/// table on four legs, a row of books on a shelf fixed to a wall) and a lamp box, every face
+/// of reflectance ρ = 0.7: all light ends on front faces, so the surfaces gather exactly
+/// `Φ / (1 − ρ)` whatever the geometry. Run with the solids 5 mm apart and touching. Kernels
+/// between neighbouring solids decide it: near cluster links judged on the cluster's centroid
+/// (before the near bound) left kdt 3.3% short with the gaps and proxi 5.2% with contact.
+/// Known: with contact 3–4% is still lost (the parts of elements shut inside a solid).
+#[test]
+fn a_furnished_closed_room_gathers_what_its_reflectance_implies() {
+    let table = std::env::var_os("ENERGY_TABLE").is_some();
+    let mut bad = Vec::new();
+    for (gap, tol) in [(0.005, 0.025), (0.0, 0.045)] {
+        let scene = furnished_room(gap);
+        let emitted = scene.emitted_power().element_sum();
+        let want = emitted / (1.0 - 0.7);
+        for strategy in Strategy::ALL {
+            let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
+            let sol = solve(&scene, &tree, &SolverConfig::default(), &NoProgress).unwrap();
+            let got: f64 = gathered(&sol, &scene).iter().sum();
+            if table {
+                println!(
+                    "gap {gap} {:8} Σ A·H / (Φ/(1 − ρ)) = {:.4}, escaping {:.3} of emitted",
+                    strategy.name(),
+                    got / want,
+                    sol.stats.power.escaping / emitted
+                );
+            }
+            bad.extend(((got / want - 1.0).abs() >= tol).then(|| {
+                format!(
+                    "{} (gap {gap} m): the surfaces gather {got:.2} W, Φ/(1 − ρ) = {want:.2} W",
+                    strategy.name()
+                )
+            }));
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}

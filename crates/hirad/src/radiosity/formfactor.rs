@@ -458,6 +458,37 @@ impl<'a> KernelCtx<'a> {
         (p / model.max(1e-9 * a) - 1.0).max(0.0)
     }
 
+    /// Upper bound of the unoccluded kernel of a link with a cluster end whose bounding
+    /// spheres (centres `d` apart, radii `r_i`, `r_j`) are closer than the larger radius,
+    /// where the centroid estimate is a far-field approximation that misses members next to
+    /// the other end; zero otherwise. From any receiving point, the form factor to surfaces of
+    /// total area `A_j` at least `g = d − r_i − r_j` away is at most `A_j / (π g²)`, and to
+    /// anything inside a sphere of radius `r_j` whose centre is `D ≥ d − r_i` away at most
+    /// `r_j² / D²` (the sphere's projected disk).
+    pub fn near_bound(&self, i: u32, j: u32) -> f64 {
+        let (ri, sj) = (self.end(i), self.end(j));
+        if matches!((ri, sj), (End::Surface { .. }, End::Surface { .. })) {
+            return 0.0;
+        }
+        let (ci, r_i) = end_sphere(&ri);
+        let (cj, r_j) = end_sphere(&sj);
+        let d = ci.distance(cj);
+        let g = d - r_i - r_j;
+        if g >= r_i.max(r_j) {
+            return 0.0;
+        }
+        let a_j = self.elems.elems[j as usize].area as f64;
+        let mut bound = 1.0f64;
+        if g > 0.0 {
+            bound = bound.min(a_j / (PI * g * g));
+        }
+        let dd = d - r_i;
+        if dd > r_j {
+            bound = bound.min(r_j * r_j / (dd * dd));
+        }
+        bound
+    }
+
     /// Cheap unoccluded estimate `F̃` (no rays): the maximum of the point kernel at the
     /// receiver's centroid and (slightly inset) corners.
     pub fn estimate(&self, i: u32, j: u32) -> f64 {

@@ -592,16 +592,19 @@ impl<'a> Solver<'a> {
             } else {
                 0.0
             };
+            // Near a cluster end the centroid estimate misses the members next to the other
+            // end: judge such links on a geometric bound of their kernel instead.
+            let near = ctx.near_bound(ri, sj);
             match ok {
                 Oracle::Bf => {
                     let e = ctx.estimate(ri, sj);
                     est_raw = Some(e);
-                    link.est = (e * g.max(1.0)) as f32;
+                    link.est = (e * g.max(1.0)).max(near) as f32;
                 }
                 Oracle::Error => {
                     let ev = ctx.evaluate(ri, sj, true);
                     rays += ev.rays;
-                    link.est = (ev.kmax - ev.kmin).max(ev.est * g).max(0.0) as f32;
+                    link.est = (ev.kmax - ev.kmin).max(ev.est * g).max(near).max(0.0) as f32;
                     eval = Some(ev);
                 }
             }
@@ -645,15 +648,6 @@ impl<'a> Solver<'a> {
                 let rho = (r.rho.max_element() as f64).min(0.999);
                 link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
                 if let Some(a) = split(link.est as f64) {
-                    return (a, *l, rays, None);
-                }
-            }
-            // The estimate must bound what the link carries: where the sampled kernel is
-            // larger (surfaces of a cluster much nearer the other end than its centre, or in
-            // front of a plane its centre lies behind), judge and keep that instead.
-            if ev.k > link.est as f64 {
-                link.est = ev.k as f32;
-                if let Some(a) = split(ev.k) {
                     return (a, *l, rays, None);
                 }
             }
