@@ -319,8 +319,8 @@ fn furnished_room(gap: f32) -> Scene {
 /// of reflectance ρ = 0.7: all light ends on front faces, so the surfaces gather exactly
 /// `Φ / (1 − ρ)` whatever the geometry. Run with the solids 5 mm apart and touching. Kernels
 /// between neighbouring solids decide it: near cluster links judged on the cluster's centroid
-/// (before the near bound) left kdt 3.3% short with the gaps and proxi 5.2% with contact.
-/// Known: with contact 3–4% is still lost (the parts of elements shut inside a solid).
+/// (before `KernelCtx::near_bound`) left kdt 3.3% short with the gaps and proxi 5.2% with
+/// contact. Known: with contact 3–4% is still lost (parts of elements shut inside a solid).
 #[test]
 fn a_furnished_closed_room_gathers_what_its_reflectance_implies() {
     let table = std::env::var_os("ENERGY_TABLE").is_some();

@@ -582,6 +582,8 @@ impl<'a> Solver<'a> {
         let mut eval = None;
         let mut est_raw = None;
         let mut members = None;
+        // The link's estimate is a bound where the ends are near ([`KernelCtx::near_bound`]).
+        let mut bounded = false;
         if !link.evaluated() {
             if ctx.is_zero(ri, sj) {
                 return (Action::Drop, link, 0, None);
@@ -593,8 +595,16 @@ impl<'a> Solver<'a> {
                 0.0
             };
             // Near a cluster end the centroid estimate misses the members next to the other
-            // end: judge such links on a geometric bound of their kernel instead.
-            let near = ctx.near_bound(ri, sj);
+            // end: judge such links on a geometric bound of their kernel instead, down to
+            // the minimum element area (below it on both ends refinement cannot resolve the
+            // near field, and opening clusters of finely tessellated objects only multiplies
+            // links).
+            let near = if (r.area.max(s.area) as f64) < self.min_area {
+                0.0
+            } else {
+                ctx.near_bound(ri, sj)
+            };
+            bounded = near > 0.0;
             match ok {
                 Oracle::Bf => {
                     let e = ctx.estimate(ri, sj);
@@ -648,6 +658,17 @@ impl<'a> Solver<'a> {
                 let rho = (r.rho.max_element() as f64).min(0.999);
                 link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
                 if let Some(a) = split(link.est as f64) {
+                    return (a, *l, rays, None);
+                }
+            }
+            // Where no bound judged the link, a sampled kernel above the estimate shows that
+            // the estimate missed something (surfaces of a cluster much nearer the other end
+            // than its centre, or in front of a plane its centre lies behind): judge that.
+            // This keeps the links whose few samples came out low, a bias towards dark, which
+            // is why near links have the bound.
+            if !bounded && ev.k > link.est as f64 {
+                link.est = ev.k as f32;
+                if let Some(a) = split(ev.k) {
                     return (a, *l, rays, None);
                 }
             }
