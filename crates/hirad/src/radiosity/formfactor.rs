@@ -461,7 +461,8 @@ impl<'a> KernelCtx<'a> {
     /// Upper bound of the unoccluded kernel of a link with a cluster end whose bounding
     /// spheres (centres `d` apart, radii `r_i`, `r_j`) are closer than the larger radius,
     /// where the centroid estimate is a far-field approximation that misses members next to
-    /// the other end; zero otherwise. From any receiving point, the form factor to surfaces of
+    /// the other end; zero otherwise, and for two surfaces (whose estimate already takes the
+    /// receiver's point nearest the source). From any receiving point, the form factor to surfaces of
     /// total area `A_j` at least `g = d − r_i − r_j` away is at most `A_j / (π g²)`, and to
     /// anything inside a sphere of radius `r_j` whose centre is `D ≥ d − r_i` away at most
     /// `r_j² / D²` (the sphere's projected disk).
