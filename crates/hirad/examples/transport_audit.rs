@@ -8,6 +8,10 @@
 //!         self        per object: solver irradiance against what cosine rays from the same
 //!                     points gather from the solution's own radiosity (exact visibility):
 //!                     the transport error of one gather, without interreflection
+//!         image       the scene camera's view at a quarter of its size: mean luminance of
+//!                     the per-vertex (Gouraud) image `validate` draws, of the leaf elements'
+//!                     own radiosity at each pixel's first hit, and of the path tracer (N/100
+//!                     paths per pixel), with the visible objects that differ most
 //!         links       per link: power delivered against Monte Carlo between the link's ends
 //!                     (exact visibility), by link class (surface/cluster ends) and by centre
 //!                     distance over the larger end's diameter
@@ -17,6 +21,7 @@
 //!   transfers it, instead of that of the leaf each sample lands on)
 //!   --rays N  --eps-rel X  --min-area-rel X  override the preset's solver settings;
 //!   --iters N stops the solver after N iterations (1: direct light only)
+//!   --depth N (image: the path tracer's bounces, 1: direct light only)
 //! ```
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -48,6 +53,7 @@ struct Opts {
     eps_rel: Option<f64>,
     min_area_rel: Option<f64>,
     iters: Option<u32>,
+    depth: Option<u32>,
 }
 
 fn parse() -> Opts {
@@ -68,6 +74,7 @@ fn parse() -> Opts {
         eps_rel: None,
         min_area_rel: None,
         iters: None,
+        depth: None,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -83,6 +90,7 @@ fn parse() -> Opts {
             "--eps-rel" => o.eps_rel = Some(val().parse().expect("--eps-rel X")),
             "--min-area-rel" => o.min_area_rel = Some(val().parse().expect("--min-area-rel X")),
             "--iters" => o.iters = Some(val().parse().expect("--iters N")),
+            "--depth" => o.depth = Some(val().parse().expect("--depth N")),
             m if !m.starts_with("--") => o.mode = m.into(),
             _ => panic!("unknown option {x}"),
         }
@@ -578,6 +586,171 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
     }
 }
 
+/// Mean luminance of the view drawn three ways, and the visible objects behind the gap.
+fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+    use hirad::metrics::luminance;
+    use hirad::radiosity::output::radiosity_mesh;
+    use hirad::render::{render_solution, BackFaces, CameraView, RasterOptions};
+    let mut view = CameraView::from_camera(&scene.default_camera());
+    view.width = (view.width / 2).max(1);
+    view.height = (view.height / 2).max(1);
+    let raster = RasterOptions {
+        back_faces: if o.two_sided {
+            BackFaces::Cull
+        } else {
+            BackFaces::Black
+        },
+        ..Default::default()
+    };
+    let gouraud =
+        render_solution(&radiosity_mesh(sol, scene, false), &view, &raster).expect("raster");
+    let mut ropts = ReferenceOptions {
+        two_sided: o.two_sided,
+        ..Default::default()
+    };
+    if let Some(d) = o.depth {
+        ropts.max_depth = d;
+    }
+    let pt = PathTracer::new(scene, caster, &ropts);
+    let frame = view.frame();
+    let spp = (o.samples / 100).max(1);
+    let el = &sol.elements;
+    // Per object: (pixels, leaf luminance sum, path-traced luminance sum).
+    let rows: Vec<(Vec<(u64, f64, f64)>, Vec<(Vec3, Vec3)>)> = (0..view.height)
+        .into_par_iter()
+        .map(|y| {
+            let mut acc = vec![(0u64, 0.0f64, 0.0f64); scene.objects.len() + 1];
+            let mut px = Vec::with_capacity(view.width as usize);
+            let mut rng = SplitMix64::for_item(0xA0D1, y as u64);
+            for x in 0..view.width {
+                let d = frame.direction(x as f32 + 0.5, y as f32 + 0.5).normalize();
+                let mut ptc = Vec3::ZERO;
+                for _ in 0..spp {
+                    ptc += pt.radiance(frame.eye, d, &mut rng);
+                }
+                ptc /= spp as f32;
+                let ptl = luminance(ptc);
+                let (obj, leaf) = match caster.closest(frame.eye, d, 0.0, f32::INFINITY) {
+                    Some(h) => {
+                        let t = h.tri;
+                        let p = frame.eye + d * h.t;
+                        let back = scene.normals[t as usize].dot(d) > 0.0;
+                        let b = if back && !o.two_sided {
+                            glam::DVec3::ZERO
+                        } else {
+                            el.b[leaf_at(sol, root(sol, t, back), p) as usize]
+                        };
+                        px.push((b.as_vec3() / std::f32::consts::PI, ptc));
+                        (
+                            scene.tri_object[t as usize] as usize,
+                            luminance(b.as_vec3()) / PI,
+                        )
+                    }
+                    None => {
+                        px.push((Vec3::ZERO, ptc));
+                        (scene.objects.len(), 0.0)
+                    }
+                };
+                let a = &mut acc[obj];
+                a.0 += 1;
+                a.1 += leaf;
+                a.2 += ptl;
+            }
+            (acc, px)
+        })
+        .collect();
+    let mut tot = vec![(0u64, 0.0f64, 0.0f64); scene.objects.len() + 1];
+    let mut img_leaf = hirad::render::Image::new(view.width, view.height, Vec3::ZERO);
+    let mut img_pt = img_leaf.clone();
+    for (y, (r, px)) in rows.into_iter().enumerate() {
+        for (x, (l, p)) in px.into_iter().enumerate() {
+            img_leaf.set(x as u32, y as u32, l);
+            img_pt.set(x as u32, y as u32, p);
+        }
+        for (t, a) in tot.iter_mut().zip(r) {
+            t.0 += a.0;
+            t.1 += a.1;
+            t.2 += a.2;
+        }
+    }
+    let dir = std::env::temp_dir().join("hirad-audit");
+    std::fs::create_dir_all(&dir).ok();
+    img_leaf
+        .write_exr(&dir.join("image_leaf.exr"))
+        .expect("exr");
+    img_pt.write_exr(&dir.join("image_path.exr")).expect("exr");
+    gouraud
+        .write_exr(&dir.join("image_gouraud.exr"))
+        .expect("exr");
+    // Side by side (leaf | path tracer | ratio: red where the leaf is darker, green brighter).
+    let (w, h) = (view.width, view.height);
+    let mut side = hirad::render::Image::new(3 * w, h, Vec3::ZERO);
+    for y in 0..h {
+        for x in 0..w {
+            let (l, p) = (img_leaf.get(x, y), img_pt.get(x, y));
+            side.set(x, y, l);
+            side.set(w + x, y, p);
+            // Ratio of 9×9 box means (the path tracer's pixels are noisy).
+            let (mut sl, mut sp) = (0.0, 0.0);
+            for yy in y.saturating_sub(4)..(y + 5).min(h) {
+                for xx in x.saturating_sub(4)..(x + 5).min(w) {
+                    sl += luminance(img_leaf.get(xx, yy));
+                    sp += luminance(img_pt.get(xx, yy));
+                }
+            }
+            let r = (sl / f64::max(sp, 1e-9)) as f32;
+            let c = if r < 1.0 {
+                Vec3::new(1.0 - r, 0.0, 0.0) * 2.0
+            } else {
+                Vec3::new(0.0, (r - 1.0).min(1.0), 0.0) * 2.0
+            };
+            side.set(2 * w + x, y, c);
+        }
+    }
+    side.write_png(&dir.join("image_side.png"), 1.0)
+        .expect("png");
+    println!("images: {}/image_{{leaf,path,gouraud}}.exr", dir.display());
+    let n = (view.width * view.height) as f64;
+    let (leaf, ptm) = tot.iter().fold((0.0, 0.0), |s, a| (s.0 + a.1, s.1 + a.2));
+    let gm = gouraud.pixels.iter().map(|&p| luminance(p)).sum::<f64>() / n;
+    println!(
+        "{}x{}, {spp} paths per pixel: mean luminance path tracer {:.5}, per-vertex image {:.5} ({:.4}), leaf at the first hit {:.5} ({:.4})",
+        view.width,
+        view.height,
+        ptm / n,
+        gm,
+        gm / (ptm / n),
+        leaf / n,
+        leaf / ptm
+    );
+    let mut idx: Vec<usize> = (0..tot.len()).filter(|&i| tot[i].0 > 0).collect();
+    idx.sort_by(|&a, &b| {
+        (tot[b].1 - tot[b].2)
+            .abs()
+            .total_cmp(&(tot[a].1 - tot[a].2).abs())
+    });
+    println!(
+        "{:40} {:>8} {:>10} {:>10} {:>7} {:>9}",
+        "object", "pixels", "leaf", "path", "ratio", "Δ/total"
+    );
+    for &i in idx.iter().take(25) {
+        let name: String = if i < scene.objects.len() {
+            scene.objects[i].chars().take(40).collect()
+        } else {
+            "(nothing)".into()
+        };
+        let t = tot[i];
+        println!(
+            "{name:40} {:8} {:10.4} {:10.4} {:7.3} {:9.4}",
+            t.0,
+            t.1 / t.0 as f64,
+            t.2 / t.0 as f64,
+            t.1 / t.2,
+            (t.1 - t.2) / ptm
+        );
+    }
+}
+
 fn main() {
     let o = parse();
     let scene = Scene::load(&o.scene, &SceneOptions::default()).expect("scene");
@@ -614,6 +787,7 @@ fn main() {
         "irradiance" => irradiance(&o, &scene, &caster, &sol),
         "self" => self_consistency(&o, &scene, &caster, &sol),
         "links" => links(&o, &scene, &tree, &caster, &sol),
+        "image" => image(&o, &scene, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }
