@@ -12,6 +12,9 @@
 //!                     the per-vertex (Gouraud) image `validate` draws, of the leaf elements'
 //!                     own radiosity at each pixel's first hit, and of the path tracer (N/100
 //!                     paths per pixel), with the visible objects that differ most
+//!         leaves      per leaf of --object (front faces): the solver's irradiance against the
+//!                     emitters' direct irradiance by light sampling (N/100 points per leaf),
+//!                     for runs with --iters 1
 //!         links       per link: power delivered against Monte Carlo between the link's ends
 //!                     (exact visibility), by link class (surface/cluster ends) and by centre
 //!                     distance over the larger end's diameter
@@ -586,6 +589,64 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
     }
 }
 
+/// Per leaf of one object: solver irradiance (from B = E + ρH) against direct light.
+fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+    let name = o.object.as_deref().expect("leaves needs --object NAME");
+    let obj = scene.objects.iter().position(|n| n == name).expect("no such object");
+    let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
+    let el = &sol.elements;
+    let m = (o.samples / 100).max(16);
+    let mut ids = Vec::new();
+    for t in 0..scene.num_triangles() as u32 {
+        if scene.tri_object[t as usize] as usize == obj {
+            el.leaves_of(root(sol, t, false), &mut ids);
+        }
+    }
+    let rows: Vec<(u32, f64, f64, f64)> = ids
+        .par_iter()
+        .map(|&id| {
+            let e = &el.elems[id as usize];
+            let rho = e.rho.as_dvec3();
+            let b = el.b[id as usize] - e.emission.as_dvec3();
+            let h = (0..3).map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 }).sum::<f64>();
+            let mut rng = SplitMix64::for_item(0x1EAF, id as u64);
+            let mut sum = 0.0;
+            for _ in 0..m {
+                let p = sample_triangle(&e.verts, rng.next_f32(), rng.next_f32());
+                sum += direct(scene, caster, &ems, (p, e.normal), &mut rng, |t, _| {
+                    scene.material_of(t as usize).emission.element_sum() as f64
+                });
+            }
+            (id, e.area as f64, h, sum / m as f64)
+        })
+        .collect();
+    let (sa, sh, sd) = rows
+        .iter()
+        .fold((0.0, 0.0, 0.0), |a, r| (a.0 + r.1, a.1 + r.1 * r.2, a.2 + r.1 * r.3));
+    println!(
+        "{name}: {} leaves, area {sa:.4}, Σ A·H solver {sh:.4}, direct {sd:.4}, ratio {:.4}",
+        rows.len(),
+        sh / sd
+    );
+    println!("{:>8} {:>9} {:>8} {:>9} {:>9} {:>7}  centroid", "leaf", "tri", "area", "H", "direct", "ratio");
+    let mut rows = rows;
+    rows.sort_by(|a, b| (b.1 * (b.2 - b.3)).abs().total_cmp(&(a.1 * (a.2 - a.3)).abs()));
+    for r in rows.iter().take(30) {
+        let e = &el.elems[r.0 as usize];
+        println!(
+            "{:8} {:9} {:8.5} {:9.4} {:9.4} {:7.3}  {:.3?} n {:.2?}",
+            r.0,
+            e.tri,
+            r.1,
+            r.2,
+            r.3,
+            r.2 / r.3,
+            e.centroid,
+            e.normal
+        );
+    }
+}
+
 /// Mean luminance of the view drawn three ways, and the visible objects behind the gap.
 fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     use hirad::metrics::luminance;
@@ -788,6 +849,7 @@ fn main() {
         "self" => self_consistency(&o, &scene, &caster, &sol),
         "links" => links(&o, &scene, &tree, &caster, &sol),
         "image" => image(&o, &scene, &caster, &sol),
+        "leaves" => leaves(&o, &scene, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }
