@@ -131,11 +131,18 @@ fn validate_compares_the_solution_with_two_references() {
         "validate", "cornell", "--size", "64x48", "--spp", "256", "--json",
     ]));
     let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"));
-    // The references agree on the energy; the solution is within 10% of it (1.070–1.077 over
-    // seeds 1–4 at this size, where the edge pixels of the directly seen light weigh most;
-    // 0.956 at 320×240, README).
+    // The references agree on the energy, with and without the lamp's pixels; the lamp
+    // (0.5% of the pixels) holds about half the luminance, so the solution is judged on the
+    // rest too (seeds 1–3: 0.967–0.973 overall, 0.972–0.974 without the lamp; 1.070–1.077
+    // overall with one sample per pixel, from the lamp's edges).
     assert!((f("reference_luminance_ratio") - 1.0).abs() < 0.03, "{v}");
-    assert!((f("mean_luminance_ratio") - 1.0).abs() < 0.1, "{v}");
+    assert!(
+        (f("reference_surface_luminance_ratio") - 1.0).abs() < 0.02,
+        "{v}"
+    );
+    assert!((0.4..0.7).contains(&f("emitter_luminance_share")), "{v}");
+    assert!((f("mean_luminance_ratio") - 1.0).abs() < 0.06, "{v}");
+    assert!((f("surface_luminance_ratio") - 1.0).abs() < 0.05, "{v}");
     assert!(
         f("rms_delta_e") > 0.0 && f("reference_rms_delta_e") > 0.0,
         "{v}"

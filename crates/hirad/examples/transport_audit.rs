@@ -592,7 +592,11 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
 /// Per leaf of one object: solver irradiance (from B = E + ρH) against direct light.
 fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     let name = o.object.as_deref().expect("leaves needs --object NAME");
-    let obj = scene.objects.iter().position(|n| n == name).expect("no such object");
+    let obj = scene
+        .objects
+        .iter()
+        .position(|n| n == name)
+        .expect("no such object");
     let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
     let el = &sol.elements;
     let m = (o.samples / 100).max(16);
@@ -608,7 +612,9 @@ fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
             let e = &el.elems[id as usize];
             let rho = e.rho.as_dvec3();
             let b = el.b[id as usize] - e.emission.as_dvec3();
-            let h = (0..3).map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 }).sum::<f64>();
+            let h = (0..3)
+                .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
+                .sum::<f64>();
             let mut rng = SplitMix64::for_item(0x1EAF, id as u64);
             let mut sum = 0.0;
             for _ in 0..m {
@@ -620,17 +626,24 @@ fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
             (id, e.area as f64, h, sum / m as f64)
         })
         .collect();
-    let (sa, sh, sd) = rows
-        .iter()
-        .fold((0.0, 0.0, 0.0), |a, r| (a.0 + r.1, a.1 + r.1 * r.2, a.2 + r.1 * r.3));
+    let (sa, sh, sd) = rows.iter().fold((0.0, 0.0, 0.0), |a, r| {
+        (a.0 + r.1, a.1 + r.1 * r.2, a.2 + r.1 * r.3)
+    });
     println!(
         "{name}: {} leaves, area {sa:.4}, Σ A·H solver {sh:.4}, direct {sd:.4}, ratio {:.4}",
         rows.len(),
         sh / sd
     );
-    println!("{:>8} {:>9} {:>8} {:>9} {:>9} {:>7}  centroid", "leaf", "tri", "area", "H", "direct", "ratio");
+    println!(
+        "{:>8} {:>9} {:>8} {:>9} {:>9} {:>7}  centroid",
+        "leaf", "tri", "area", "H", "direct", "ratio"
+    );
     let mut rows = rows;
-    rows.sort_by(|a, b| (b.1 * (b.2 - b.3)).abs().total_cmp(&(a.1 * (a.2 - a.3)).abs()));
+    rows.sort_by(|a, b| {
+        (b.1 * (b.2 - b.3))
+            .abs()
+            .total_cmp(&(a.1 * (a.2 - a.3)).abs())
+    });
     for r in rows.iter().take(30) {
         let e = &el.elems[r.0 as usize];
         println!(
@@ -677,7 +690,10 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     let spp = (o.samples / 100).max(1);
     let el = &sol.elements;
     // Per object: (pixels, leaf luminance sum, path-traced luminance sum).
-    let rows: Vec<(Vec<(u64, f64, f64)>, Vec<(Vec3, Vec3)>)> = (0..view.height)
+    // Per image row: per object (pixels, leaf luminance sum, path-traced luminance sum), and
+    // per pixel (leaf radiance, path-traced radiance).
+    type Row = (Vec<(u64, f64, f64)>, Vec<(Vec3, Vec3)>);
+    let rows: Vec<Row> = (0..view.height)
         .into_par_iter()
         .map(|y| {
             let mut acc = vec![(0u64, 0.0f64, 0.0f64); scene.objects.len() + 1];
