@@ -5,7 +5,7 @@
 //! exact in both images yet can carry most of the mean luminance (the lamps of the built-in
 //! office: 65%), so the ratio over the other pixels is printed too. The solution is drawn with
 //! 8 × 8 samples per pixel: the edges of a bright lamp aligned with the pixel rows otherwise move
-//! the mean by several per cent (cornell at one sample per pixel: 0.96, at 16 × 16: 0.986).
+//! the mean by several per cent (`docs/perf-log.md`, 2026-12-02 (3)).
 
 use super::image_args::CameraArgs;
 use crate::Global;
