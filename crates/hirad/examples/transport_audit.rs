@@ -8,7 +8,7 @@
 //!         self        per object: solver irradiance against what cosine rays from the same
 //!                     points gather from the solution's own radiosity (exact visibility):
 //!                     the transport error of one gather, without interreflection
-//!         image       the scene camera's view at a quarter of its size: mean luminance of
+//!         image       the scene camera's view at half its width and height: mean luminance of
 //!                     the per-vertex (Gouraud) image `validate` draws, of the leaf elements'
 //!                     own radiosity at each pixel's first hit, and of the path tracer (N/100
 //!                     paths per pixel), with the visible objects that differ most
