@@ -15,6 +15,9 @@
 //!         leaves      per leaf of --object (front faces): the solver's irradiance against the
 //!                     emitters' direct irradiance by light sampling (N/100 points per leaf),
 //!                     for runs with --iters 1
+//!         shut        per object: where the radiosity leaving its points lands (one cosine
+//!                     ray per point, weighted by the leaf radiosity): the share that goes
+//!                     into back faces (emitted inside a solid) or into nothing
 //!         links       per link: power delivered against Monte Carlo between the link's ends
 //!                     (exact visibility), by link class (surface/cluster ends) and by centre
 //!                     distance over the larger end's diameter
@@ -419,6 +422,86 @@ fn self_consistency(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution)
         }
     });
     print_rows(scene, rows, "rays on B");
+}
+
+/// Where the radiosity leaving each object's points lands: one cosine ray per point, weighted
+/// by the leaf radiosity there; a back face (one-sided) or nothing means the point emits into
+/// a solid or out of the scene.
+fn shut(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+    let el = &sol.elements;
+    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+    for t in 0..scene.num_triangles() {
+        by[scene.tri_object[t] as usize].push(t as u32);
+    }
+    // Per object: area, Σ A·B, fraction of points whose ray hits a back face, misses, and the
+    // B-weighted fractions.
+    let rows: Vec<(usize, f64, f64, f64, f64, f64, f64)> = by
+        .par_iter()
+        .enumerate()
+        .filter(|(_, ts)| !ts.is_empty())
+        .map(|(obj, ts)| {
+            let tris = ByArea::new(ts.clone(), |t| scene.areas[t as usize] as f64);
+            let mut rng = SplitMix64::new(obj as u64 * 17 + 3);
+            let m = o.samples;
+            let (mut sb, mut nb, mut nm, mut wb, mut wm) = (0.0f64, 0usize, 0usize, 0.0f64, 0.0f64);
+            for _ in 0..m {
+                let t = tris.pick(&mut rng) as usize;
+                let nrm = scene.normals[t];
+                let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+                let b = el.b[leaf_at(sol, root(sol, t as u32, false), p) as usize].element_sum();
+                sb += b;
+                let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
+                match caster.closest(p + nrm * OFF, d, 0.0, f32::INFINITY) {
+                    Some(h) if scene.normals[h.tri as usize].dot(d) > 0.0 && !o.two_sided => {
+                        nb += 1;
+                        wb += b;
+                    }
+                    Some(_) => {}
+                    None => {
+                        nm += 1;
+                        wm += b;
+                    }
+                }
+            }
+            let a = tris.total();
+            let mf = m as f64;
+            (
+                obj,
+                a,
+                a * sb / mf,
+                nb as f64 / mf,
+                nm as f64 / mf,
+                wb / sb.max(1e-30),
+                wm / sb.max(1e-30),
+            )
+        })
+        .collect();
+    let tot: f64 = rows.iter().map(|r| r.2).sum();
+    let lost_b: f64 = rows.iter().map(|r| r.2 * r.5).sum();
+    let lost_m: f64 = rows.iter().map(|r| r.2 * r.6).sum();
+    let area: f64 = rows.iter().map(|r| r.1).sum();
+    let shut_a: f64 = rows.iter().map(|r| r.1 * r.3).sum();
+    println!(
+        "Σ A·B {tot:.2} W; into back faces {lost_b:.2} W, into nothing {lost_m:.2} W; area {area:.2}, shut {:.4}",
+        shut_a / area
+    );
+    let mut rows = rows;
+    rows.sort_by(|a, b| (b.2 * b.5).total_cmp(&(a.2 * a.5)));
+    println!(
+        "{:40} {:>9} {:>9} {:>7} {:>7} {:>8}",
+        "object", "area", "A·B", "shut", "miss", "A·B lost"
+    );
+    for r in rows.iter().take(25) {
+        let name: String = scene.objects[r.0].chars().take(40).collect();
+        println!(
+            "{name:40} {:9.3} {:9.3} {:7.3} {:7.3} {:8.3}",
+            r.1,
+            r.2,
+            r.3,
+            r.4,
+            r.2 * r.5
+        );
+    }
 }
 
 /// Root surface elements under element `id` (itself when a surface).
@@ -866,6 +949,7 @@ fn main() {
         "links" => links(&o, &scene, &tree, &caster, &sol),
         "image" => image(&o, &scene, &caster, &sol),
         "leaves" => leaves(&o, &scene, &caster, &sol),
+        "shut" => shut(&o, &scene, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }

@@ -179,7 +179,8 @@ fn cluster_receives_projected_area_quarter() {
                         Reception::Isotropic => 0.25,
                         Reception::Oriented => e.normal.dot(d).max(0.0) as f64,
                     };
-                    via_links += e.area as f64 * h * w;
+                    // Points shut inside a solid or covered receive nothing (none here).
+                    via_links += (e.area * el.open[s as usize]) as f64 * h * w;
                 }
             }
         }
@@ -188,6 +189,10 @@ fn cluster_receives_projected_area_quarter() {
             "{mode:?}: received {received:.6e}, predicted H·ΣA/4 = {predicted:.6e} (rel {rel:.2e}), \
              through cluster links {via_links:.6e}, {} cluster-surface links",
             sol.stats.links_cs
+        );
+        assert_eq!(
+            sol.stats.shut_triangles, 0,
+            "a cloud of loose faces is not a solid"
         );
         assert!(
             sol.stats.links_cs >= 2,

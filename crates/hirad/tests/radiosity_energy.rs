@@ -320,7 +320,8 @@ fn furnished_room(gap: f32) -> Scene {
 /// `Φ / (1 − ρ)` whatever the geometry. Run with the solids 5 mm apart and touching. Kernels
 /// between neighbouring solids decide it: near cluster links judged on the cluster's centroid
 /// (before `KernelCtx::near_bound`) left kdt 3.3% short with the gaps and proxi 5.2% with
-/// contact. Known: with contact 3–4% is still lost (parts of elements shut inside a solid).
+/// contact. Known: with contact 2.7–3.6% is still lost (2026-12-02): faces pressed together
+/// (a crate's bottom on the floor) are not inside a solid (`radiosity::shut`) and trade light.
 #[test]
 fn a_furnished_closed_room_gathers_what_its_reflectance_implies() {
     let table = std::env::var_os("ENERGY_TABLE").is_some();

@@ -156,6 +156,10 @@ pub struct Elements {
     pub h: Vec<DVec3>,
     /// Direct irradiance from the sun and sky (surface elements; zero without them).
     pub direct: Vec<DVec3>,
+    /// Share of the element's area that receives and emits: not under a coplanar triangle
+    /// nor inside a solid ([`super::overlap::Covers`]); NaN until the solver has computed it
+    /// (new children of a split element).
+    pub open: Vec<f32>,
     /// Orientation summary per cluster (index = cluster id).
     pub orient: Vec<ClusterOrient>,
 }
@@ -270,6 +274,7 @@ impl Elements {
             b: vec![DVec3::ZERO; n],
             h: vec![DVec3::ZERO; n],
             direct: vec![DVec3::ZERO; n],
+            open: vec![1.0; n],
             orient,
         }
     }
@@ -341,6 +346,7 @@ impl Elements {
             self.b.push(bparent);
             self.h.push(DVec3::ZERO);
             self.direct.push(DVec3::ZERO);
+            self.open.push(f32::NAN);
         }
         let e = &mut self.elems[id as usize];
         e.first_child = first;
@@ -352,13 +358,14 @@ impl Elements {
         self.elems.capacity() * std::mem::size_of::<Element>()
             + (self.b.capacity() + self.h.capacity() + self.direct.capacity())
                 * std::mem::size_of::<DVec3>()
+            + self.open.capacity() * 4
             + self.cluster_kids.capacity() * 4
             + self.orient.capacity() * std::mem::size_of::<ClusterOrient>()
     }
 
     /// Bytes one more element costs.
     pub const BYTES_PER_ELEMENT: usize =
-        std::mem::size_of::<Element>() + 3 * std::mem::size_of::<DVec3>();
+        std::mem::size_of::<Element>() + 3 * std::mem::size_of::<DVec3>() + 4;
 
     /// True when `a` is an ancestor of `b` (or equal).
     pub fn is_ancestor(&self, a: u32, b: u32) -> bool {

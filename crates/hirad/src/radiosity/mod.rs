@@ -6,6 +6,7 @@
 //! - [`oracle`]: the `bf` and `error` refinement oracles;
 //! - [`visibility`]: shadow rays through the cluster tree (and the volume hook);
 //! - [`overlap`]: coplanar overlapping triangles, each overlap given to one of them;
+//! - [`shut`]: the parts of triangles inside closed solids;
 //! - [`solver`]: refine / gather / push-pull until convergence;
 //! - [`config`]: [`SolverConfig`] and presets; [`stats`]: [`SolveStats`];
 //! - [`output`]: per-vertex radiosity meshes and result files.
@@ -19,6 +20,7 @@ pub mod link;
 pub mod oracle;
 pub mod output;
 pub mod overlap;
+pub mod shut;
 pub mod solver;
 pub mod stats;
 pub mod visibility;

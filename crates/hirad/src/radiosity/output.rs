@@ -2,7 +2,9 @@
 //!
 //! The mesh is the leaf-element mesh: one triangle per leaf surface element (back faces of
 //! two-sided solutions are separate triangles with reversed winding). Smooth output averages
-//! the radiosity of the leaf elements meeting at a vertex; vertices are shared between leaves
+//! the radiosity of the leaf elements meeting at a vertex, each weighted by its open share
+//! (a leaf inside a solid or under a coplanar face does not darken its visible neighbours);
+//! vertices are shared between leaves
 //! of the same face side, material and plane orientation (normals equal to 1e-3), so creases
 //! and material boundaries stay sharp. `flat` gives every leaf its own three vertices
 //! (discontinuous, per-element colour). Colours are radiosity B (W/m²).
@@ -20,7 +22,8 @@ pub fn radiosity_mesh(sol: &Solution, scene: &Scene, flat: bool) -> ColoredMesh 
     let leaves = sol.leaves();
     let el = &sol.elements;
     let mut mesh = ColoredMesh::default();
-    let mut sums: Vec<(DVec3, u32)> = Vec::new();
+    // Per vertex: Σ w·B, Σ w (open shares), Σ B and the count (when every leaf is shut).
+    let mut sums: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
     let mut index: HashMap<([u32; 3], u32, bool, [i32; 3]), u32> = HashMap::new();
     for &id in &leaves {
         let e = &el.elems[id as usize];
@@ -31,25 +34,35 @@ pub fn radiosity_mesh(sol: &Solution, scene: &Scene, flat: bool) -> ColoredMesh 
         for (k, &p) in e.verts.iter().enumerate() {
             let v = if flat {
                 mesh.positions.push(p);
-                sums.push((DVec3::ZERO, 0));
+                sums.push(Default::default());
                 (mesh.positions.len() - 1) as u32
             } else {
                 let key = (p.to_array().map(f32::to_bits), mat, e.back, nq);
                 *index.entry(key).or_insert_with(|| {
                     mesh.positions.push(p);
-                    sums.push((DVec3::ZERO, 0));
+                    sums.push(Default::default());
                     (mesh.positions.len() - 1) as u32
                 })
             };
-            sums[v as usize].0 += b;
-            sums[v as usize].1 += 1;
+            let w = el.open[id as usize] as f64;
+            let s = &mut sums[v as usize];
+            s.0 += b * w;
+            s.1 += w;
+            s.2 += b;
+            s.3 += 1;
             tri[k] = v;
         }
         mesh.triangles.push(tri);
     }
     mesh.colors = sums
         .into_iter()
-        .map(|(s, n)| (s / n.max(1) as f64).as_vec3())
+        .map(|(sw, w, s, n)| {
+            if w > 1e-6 {
+                (sw / w).as_vec3()
+            } else {
+                (s / n.max(1) as f64).as_vec3()
+            }
+        })
         .collect();
     mesh
 }

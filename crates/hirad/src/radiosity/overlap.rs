@@ -6,7 +6,9 @@
 //! a ceiling shines), then that of the smaller object (a detail lies on what carries it, however
 //! finely either is tessellated), then the smaller triangle, then the lower id; the other's
 //! points there are *covered*: the solver's kernels give them no light and take none from them.
+//! Points inside closed solids ([`ShutMasks`]) are covered too.
 
+use super::shut::ShutMasks;
 use crate::cluster::ClusterTree;
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
@@ -21,6 +23,8 @@ pub struct Covers {
     shapes: Vec<[Vec2; 3]>,
     /// Per triangle: the coordinate its plane projection drops.
     axis: Vec<u8>,
+    /// The parts inside closed solids.
+    shut: ShutMasks,
 }
 
 /// Normals closer than this (|cos| above `1 − PARALLEL`) make two triangles parallel.
@@ -36,6 +40,7 @@ impl Covers {
         ids: Vec::new(),
         shapes: Vec::new(),
         axis: Vec::new(),
+        shut: ShutMasks::EMPTY,
     };
 
     /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`. One-sided
@@ -76,6 +81,7 @@ impl Covers {
             ids,
             shapes,
             axis,
+            shut: ShutMasks::build(scene, tree, two_sided),
         }
     }
 
@@ -84,9 +90,14 @@ impl Covers {
         self.ids.is_empty()
     }
 
-    /// Triangles with a covered part.
+    /// Triangles with a part under a coplanar one.
     pub fn covered_triangles(&self) -> usize {
         self.offsets.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+
+    /// Triangles with a part inside a closed solid.
+    pub fn shut_triangles(&self) -> usize {
+        self.shut.shut_triangles()
     }
 
     /// Entries of triangle `tri` in `ids` and `shapes`.
@@ -103,27 +114,31 @@ impl Covers {
         &self.ids[self.range(tri)]
     }
 
-    /// Share of the triangle `v` (a part of input triangle `tri`) that no triangle covers,
-    /// from 16 stratified points (1 when nothing covers `tri`).
+    /// Share of the triangle `v` (a part of input triangle `tri`) that is not covered,
+    /// from 64 stratified points (1 when no part of `tri` is).
     pub fn open_fraction(&self, tri: u32, v: &[Vec3; 3]) -> f64 {
-        if self.range(tri).is_empty() {
+        if self.range(tri).is_empty() && !self.shut.has_mask(tri) {
             return 1.0;
         }
         let mut open = 0;
-        for i in 0..4 {
-            for j in 0..4 {
-                let (u1, u2) = ((i as f32 + 0.5) / 4.0, (j as f32 + 0.5) / 4.0);
+        for i in 0..8 {
+            for j in 0..8 {
+                let (u1, u2) = ((i as f32 + 0.5) / 8.0, (j as f32 + 0.5) / 8.0);
                 let s = u1.sqrt();
                 let p = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2);
                 open += !self.covered(tri, p) as u32;
             }
         }
-        open as f64 / 16.0
+        open as f64 / 64.0
     }
 
-    /// True when point `p` of triangle `tri` lies under a triangle that covers it.
+    /// True when point `p` of triangle `tri` lies under a triangle that covers it or inside
+    /// a closed solid.
     #[inline]
     pub fn covered(&self, tri: u32, p: Vec3) -> bool {
+        if self.shut.shut(tri, p) {
+            return true;
+        }
         let r = self.range(tri);
         if r.is_empty() {
             return false;

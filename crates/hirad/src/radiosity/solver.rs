@@ -154,7 +154,8 @@ struct Entry {
 /// Result of push-pull below one root surface.
 #[derive(Clone, Debug, Default)]
 struct RootResult {
-    updates: Vec<(u32, DVec3)>,
+    /// Per element below the root and the root: its radiosity and open share.
+    updates: Vec<(u32, DVec3, f32)>,
     incident: DVec3,
     absorbed: f64,
     gathered: f64,
@@ -235,6 +236,10 @@ impl<'a> Solver<'a> {
         }
         let nc = el.num_clusters as usize;
         let covers = Covers::build(scene, tree, cfg.two_sided);
+        for id in el.roots() {
+            let e = &el.elems[id as usize];
+            el.open[id as usize] = covers.open_fraction(e.tri, &e.verts) as f32;
+        }
         let stats = SolveStats {
             scene: scene.name.clone(),
             triangles: scene.num_triangles(),
@@ -250,12 +255,19 @@ impl<'a> Solver<'a> {
             cluster_receive: cfg.cluster_receive.name().into(),
             threads: rayon::current_num_threads(),
             covered_triangles: covers.covered_triangles(),
+            shut_triangles: covers.shut_triangles(),
             ..Default::default()
         };
         if !covers.is_empty() {
             tracing::info!(
                 "{} triangles lie partly under coplanar ones; the covered parts take no light",
                 stats.covered_triangles
+            );
+        }
+        if stats.shut_triangles > 0 {
+            tracing::info!(
+                "{} triangles lie partly inside closed solids; those parts take no light",
+                stats.shut_triangles
             );
         }
         let mut pp_order: Vec<u32> = el.roots().collect();
@@ -801,10 +813,11 @@ impl<'a> Solver<'a> {
                 let (hc, kc) = hk[(r - roots.start) as usize];
                 let mut out = RootResult::default();
                 let area = e.area as f64;
-                out.gathered_cluster = area * hc.element_sum();
+                let open = area * el.open[r as usize] as f64;
+                out.gathered_cluster = open * hc.element_sum();
                 out.gathered = out.gathered_cluster;
-                let b = push_rec(el, covers, (h_cluster, k_sum), r, (hc, kc), &mut out);
-                out.updates.push((r, b));
+                let (b, open) = push_rec(el, covers, (h_cluster, k_sum), r, (hc, kc), &mut out);
+                out.updates.push((r, b, (open / area.max(1e-300)) as f32));
                 out.incident /= area;
                 out
             })
@@ -813,8 +826,9 @@ impl<'a> Solver<'a> {
         let mut gain_above_one = 0u64;
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
-            for (id, b) in res.updates {
+            for (id, b, open) in res.updates {
                 self.el.b[id as usize] = b;
+                self.el.open[id as usize] = open;
             }
             self.root_irr.push(res.incident);
             pw.absorbed += res.absorbed;
@@ -825,7 +839,7 @@ impl<'a> Solver<'a> {
         }
         for r in roots {
             let e = &self.el.elems[r as usize];
-            pw.emitted += e.emission.as_dvec3().element_sum() * e.area as f64;
+            pw.emitted += e.emission.as_dvec3().element_sum() * self.open_area(r);
         }
         self.pull_clusters();
         pw.radiosity = self.total_power();
@@ -834,25 +848,34 @@ impl<'a> Solver<'a> {
         self.stats.leaves_gain_above_one = gain_above_one;
     }
 
-    /// Cluster radiosity = area average of the children, bottom-up.
+    /// Cluster radiosity = average of the children over their open area (the part that
+    /// emits), bottom-up; the cluster's open share is the children's open area over its area.
     fn pull_clusters(&mut self) {
         let nc = self.el.num_clusters as usize;
         for id in (0..nc).rev() {
             let e = &self.el.elems[id];
-            let mut acc = DVec3::ZERO;
+            let (mut acc, mut open) = (DVec3::ZERO, 0.0f64);
             for k in self.el.children(id as u32) {
-                acc += self.el.b[k as usize] * self.el.elems[k as usize].area as f64;
+                let a = self.open_area(k);
+                acc += self.el.b[k as usize] * a;
+                open += a;
             }
             let a = e.area as f64;
-            self.el.b[id] = if a > 0.0 { acc / a } else { DVec3::ZERO };
+            self.el.b[id] = if open > 0.0 { acc / open } else { DVec3::ZERO };
+            self.el.open[id] = if a > 0.0 { (open / a) as f32 } else { 1.0 };
         }
     }
 
-    /// Σ A·B over root surfaces (channel sum), summed in id order.
+    /// The part of element `id`'s area that receives and emits.
+    fn open_area(&self, id: u32) -> f64 {
+        self.el.elems[id as usize].area as f64 * self.el.open[id as usize] as f64
+    }
+
+    /// Σ A·B over the open part of the root surfaces (channel sum), summed in id order.
     fn total_power(&self) -> f64 {
         self.el
             .roots()
-            .map(|r| self.el.b[r as usize].element_sum() * self.el.elems[r as usize].area as f64)
+            .map(|r| self.el.b[r as usize].element_sum() * self.open_area(r))
             .sum()
     }
 
@@ -866,6 +889,7 @@ impl<'a> Solver<'a> {
         let seed = self.cfg.seed ^ 0x5u64.wrapping_mul(0x9E37_79B9);
         let up = scene.up.vector();
         let tmin = 1e-5 * scene.bbox.extent().length().max(1e-12);
+        let covers = &self.covers;
         let vals: Vec<(DVec3, u64)> = (lo..hi)
             .into_par_iter()
             .map(|id| {
@@ -883,13 +907,18 @@ impl<'a> Solver<'a> {
                     if c > 0.0 {
                         let mut pts = Vec::new();
                         super::formfactor::stratified_2d(n_sun, &mut rng, &mut pts);
-                        let mut open = 0.0;
+                        let (mut open, mut n_open) = (0.0, 0usize);
                         for p in &pts {
-                            let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
+                            let x = sample_triangle(&e.verts, p[0], p[1]);
+                            // Irradiance is the mean over the element's open points.
+                            if covers.covered(e.tri, x) {
+                                continue;
+                            }
+                            n_open += 1;
                             rays += 1;
-                            open += vis.open_to_infinity(x, sun.direction, tmin, e.tri);
+                            open += vis.open_to_infinity(x + offset, sun.direction, tmin, e.tri);
                         }
-                        h += sun.irradiance.as_dvec3() * (c as f64 * open / n_sun as f64);
+                        h += sun.irradiance.as_dvec3() * (c as f64 * open / n_open.max(1) as f64);
                     }
                 }
                 if let Some(sky) = scene.sky {
@@ -898,8 +927,13 @@ impl<'a> Solver<'a> {
                     let mut pts = Vec::new();
                     super::formfactor::stratified_2d(n_sky, &mut rng, &mut pts);
                     let (t, b) = n.any_orthonormal_pair();
-                    let mut open = 0.0;
+                    let (mut open, mut n_open) = (0.0, 0usize);
                     for (d, p) in dirs.iter().zip(&pts) {
+                        let x = sample_triangle(&e.verts, p[0], p[1]);
+                        if covers.covered(e.tri, x) {
+                            continue;
+                        }
+                        n_open += 1;
                         // Cosine-weighted direction about n.
                         let r = d[0].sqrt();
                         let phi = std::f32::consts::TAU * d[1];
@@ -910,11 +944,10 @@ impl<'a> Solver<'a> {
                         if w.dot(up) <= 0.0 {
                             continue;
                         }
-                        let x = sample_triangle(&e.verts, p[0], p[1]) + offset;
                         rays += 1;
-                        open += vis.open_to_infinity(x, w, tmin, e.tri);
+                        open += vis.open_to_infinity(x + offset, w, tmin, e.tri);
                     }
-                    h += sky.as_dvec3() * (std::f64::consts::PI * open / n_sky as f64);
+                    h += sky.as_dvec3() * (std::f64::consts::PI * open / n_open.max(1) as f64);
                 }
                 (h, rays)
             })
@@ -966,9 +999,12 @@ impl<'a> Solver<'a> {
     }
 }
 
-/// Push-pull below surface element `id` with irradiance `down` from above; returns its B.
+/// Push-pull below surface element `id` with irradiance `down` from above; returns its B
+/// and its open area (the part not covered: [`Covers`]).
 ///
-/// `down` carries the irradiance and the kernel sum gathered above the element.
+/// `down` carries the irradiance and the kernel sum gathered above the element. Irradiance
+/// is the mean over open points (the kernels' receiver), so power is counted on the open
+/// area, and a parent's radiosity is its children's average over their open area.
 fn push_rec(
     el: &Elements,
     covers: &Covers,
@@ -976,12 +1012,19 @@ fn push_rec(
     id: u32,
     down: (DVec3, f64),
     out: &mut RootResult,
-) -> DVec3 {
+) -> (DVec3, f64) {
     let e = &el.elems[id as usize];
     let area = e.area as f64;
     let own = el.h[id as usize];
-    out.gathered += area * own.element_sum();
-    out.gathered_cluster += area * h_cluster[id as usize];
+    let known = el.open[id as usize];
+    let open_here = area
+        * if known.is_nan() {
+            covers.open_fraction(e.tri, &e.verts)
+        } else {
+            known as f64
+        };
+    out.gathered += open_here * own.element_sum();
+    out.gathered_cluster += open_here * h_cluster[id as usize];
     let h = down.0 + own;
     let k = down.1 + k_sum[id as usize];
     if e.num_children == 0 {
@@ -989,18 +1032,24 @@ fn push_rec(
         let d = el.direct[id as usize];
         let inc = h + d;
         let rho = e.rho.as_dvec3();
-        // Power only on the part no coplanar triangle covers (the kernels' receiver).
-        let open = area * covers.open_fraction(e.tri, &e.verts);
-        out.incident += inc * area;
-        out.absorbed += open * ((DVec3::ONE - rho) * inc).element_sum();
-        out.direct += open * d.element_sum();
-        return e.emission.as_dvec3() + rho * inc;
+        out.incident += inc * open_here;
+        out.absorbed += open_here * ((DVec3::ONE - rho) * inc).element_sum();
+        out.direct += open_here * d.element_sum();
+        return (e.emission.as_dvec3() + rho * inc, open_here);
     }
-    let mut acc = DVec3::ZERO;
+    let (mut acc, mut acc_plain, mut open) = (DVec3::ZERO, DVec3::ZERO, 0.0f64);
     for c in el.children(id) {
-        let b = push_rec(el, covers, (h_cluster, k_sum), c, (h, k), out);
-        out.updates.push((c, b));
-        acc += b;
+        let (b, o) = push_rec(el, covers, (h_cluster, k_sum), c, (h, k), out);
+        let ca = el.elems[c as usize].area as f64;
+        out.updates.push((c, b, (o / ca.max(1e-300)) as f32));
+        acc += b * o;
+        acc_plain += b;
+        open += o;
     }
-    acc / e.num_children as f64
+    let b = if open > 0.0 {
+        acc / open
+    } else {
+        acc_plain / e.num_children as f64
+    };
+    (b, open)
 }

@@ -82,6 +82,9 @@ pub struct SolveStats {
     pub threads: usize,
     /// Triangles partly under a coplanar triangle that owns the overlap (`radiosity::overlap`).
     pub covered_triangles: usize,
+    /// Triangles partly inside a closed solid (`radiosity::shut`).
+    #[serde(default)]
+    pub shut_triangles: usize,
     /// All elements (clusters + surface elements).
     pub elements: usize,
     pub cluster_elements: usize,
