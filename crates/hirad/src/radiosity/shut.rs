@@ -183,7 +183,7 @@ fn cell(
 ) -> u32 {
     if depth >= min_depth {
         let at = |(c1, c2): (f32, f32)| v[0] + (v[1] - v[0]) * c1 + (v[2] - v[0]) * c2;
-        let shut: Vec<bool> = PROBES.iter().map(|&c| probe(at(c))).collect();
+        let shut = PROBES.map(|c| probe(at(c)));
         let all = shut.iter().all(|&s| s);
         if all || !shut.iter().any(|&s| s) {
             return if all { SHUT } else { OPEN };
