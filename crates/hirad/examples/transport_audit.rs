@@ -16,8 +16,9 @@
 //!                     emitters' direct irradiance by light sampling (N/100 points per leaf),
 //!                     for runs with --iters 1
 //!         shut        per object: where the radiosity leaving its points lands (one cosine
-//!                     ray per point, weighted by the leaf radiosity): the share that goes
-//!                     into back faces (emitted inside a solid) or into nothing
+//!                     ray per point, weighted by the leaf radiosity, 0 where the solver
+//!                     leaves the point out): the share that goes into back faces
+//!                     (emitted inside a solid) or into nothing
 //!         links       per link: power delivered against Monte Carlo between the link's ends
 //!                     (exact visibility), by link class (surface/cluster ends) and by centre
 //!                     distance over the larger end's diameter
@@ -427,8 +428,10 @@ fn self_consistency(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution)
 /// Where the radiosity leaving each object's points lands: one cosine ray per point, weighted
 /// by the leaf radiosity there; a back face (one-sided) or nothing means the point emits into
 /// a solid or out of the scene.
-fn shut(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
     let el = &sol.elements;
+    // Points the solver leaves out (under a coplanar face or inside a solid) emit nothing.
+    let covers = hirad::radiosity::overlap::Covers::build(scene, tree, o.two_sided);
     let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
     for t in 0..scene.num_triangles() {
         by[scene.tri_object[t] as usize].push(t as u32);
@@ -448,7 +451,11 @@ fn shut(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
                 let t = tris.pick(&mut rng) as usize;
                 let nrm = scene.normals[t];
                 let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
-                let b = el.b[leaf_at(sol, root(sol, t as u32, false), p) as usize].element_sum();
+                let b = if covers.covered(t as u32, p) {
+                    0.0
+                } else {
+                    el.b[leaf_at(sol, root(sol, t as u32, false), p) as usize].element_sum()
+                };
                 sb += b;
                 let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
                 match caster.closest(p + nrm * OFF, d, 0.0, f32::INFINITY) {
@@ -949,7 +956,7 @@ fn main() {
         "links" => links(&o, &scene, &tree, &caster, &sol),
         "image" => image(&o, &scene, &caster, &sol),
         "leaves" => leaves(&o, &scene, &caster, &sol),
-        "shut" => shut(&o, &scene, &caster, &sol),
+        "shut" => shut(&o, &scene, &tree, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }

@@ -336,12 +336,21 @@ fn a_furnished_closed_room_gathers_what_its_reflectance_implies() {
             let got: f64 = gathered(&sol, &scene).iter().sum();
             if table {
                 println!(
-                    "gap {gap} {:8} Σ A·H / (Φ/(1 − ρ)) = {:.4}, escaping {:.3} of emitted",
+                    "gap {gap} {:8} Σ A·H / (Φ/(1 − ρ)) = {:.4}, escaping {:.3} of emitted, \
+                     mean kernel sum {:.4}",
                     strategy.name(),
                     got / want,
-                    sol.stats.power.escaping / emitted
+                    sol.stats.power.escaping / emitted,
+                    sol.stats.kernel_sum_mean
                 );
             }
+            // Every open point of a closed scene sees surfaces all round: its kernels sum to 1
+            // (with contact, faces pressed on others see nothing through them).
+            let k = sol.stats.kernel_sum_mean;
+            bad.extend(
+                (gap > 0.0 && (k - 1.0).abs() >= 0.01)
+                    .then(|| format!("{} (gap {gap} m): mean kernel sum {k:.4}", strategy.name())),
+            );
             bad.extend(((got / want - 1.0).abs() >= tol).then(|| {
                 format!(
                     "{} (gap {gap} m): the surfaces gather {got:.2} W, Φ/(1 − ρ) = {want:.2} W",

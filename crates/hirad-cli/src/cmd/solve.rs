@@ -90,7 +90,8 @@ pub struct Args {
     pub image: super::image_args::ImageArgs,
     #[command(flatten)]
     pub raster: super::image_args::RasterArgs,
-    /// Discontinuous per-element colours instead of vertex averages.
+    /// Discontinuous per-element colours instead of the smooth mesh (vertex values fitted to
+    /// the elements' means).
     #[arg(long)]
     pub flat: bool,
     /// Benchmark: solve, print the statistics as JSON, write no files.

@@ -163,6 +163,8 @@ struct RootResult {
     direct: f64,
     /// Leaves whose gain `ρ · Σ K` exceeds 1.
     gain_above_one: u64,
+    /// Leaves' open area, Σ open·K, open area with K < 0.9 and with K > 1.1.
+    k_stats: [f64; 4],
 }
 
 struct Solver<'a> {
@@ -824,6 +826,7 @@ impl<'a> Solver<'a> {
             .collect();
         let mut pw = super::stats::PowerStats::default();
         let mut gain_above_one = 0u64;
+        let mut ks = [0.0f64; 4];
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
             for (id, b, open) in res.updates {
@@ -835,6 +838,9 @@ impl<'a> Solver<'a> {
             pw.gathered += res.gathered;
             pw.gathered_cluster += res.gathered_cluster;
             gain_above_one += res.gain_above_one;
+            for (a, b) in ks.iter_mut().zip(res.k_stats) {
+                *a += b;
+            }
             pw.emitted += res.direct;
         }
         for r in roots {
@@ -846,6 +852,10 @@ impl<'a> Solver<'a> {
         pw.escaping = pw.radiosity - pw.gathered;
         self.stats.power = pw;
         self.stats.leaves_gain_above_one = gain_above_one;
+        let a = ks[0].max(1e-300);
+        self.stats.kernel_sum_mean = ks[1] / a;
+        self.stats.kernel_sum_low = ks[2] / a;
+        self.stats.kernel_sum_high = ks[3] / a;
     }
 
     /// Cluster radiosity = average of the children over their open area (the part that
@@ -1029,6 +1039,10 @@ fn push_rec(
     let k = down.1 + k_sum[id as usize];
     if e.num_children == 0 {
         out.gain_above_one += (e.rho.max_element() as f64 * k > 1.0) as u64;
+        out.k_stats[0] += open_here;
+        out.k_stats[1] += open_here * k;
+        out.k_stats[2] += open_here * (k < 0.9) as u8 as f64;
+        out.k_stats[3] += open_here * (k > 1.1) as u8 as f64;
         let d = el.direct[id as usize];
         let inc = h + d;
         let rho = e.rho.as_dvec3();

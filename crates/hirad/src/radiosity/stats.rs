@@ -111,6 +111,16 @@ pub struct SolveStats {
     /// over-estimate; nothing is clamped).
     #[serde(default)]
     pub leaves_gain_above_one: u64,
+    /// The leaves' kernel sums `Σ K` in the last gather, weighted by open area: 1 in a closed
+    /// scene, where every open point sees surfaces all round.
+    #[serde(default)]
+    pub kernel_sum_mean: f64,
+    /// Share of the leaves' open area whose kernel sum is below 0.9.
+    #[serde(default)]
+    pub kernel_sum_low: f64,
+    /// Share of the leaves' open area whose kernel sum is above 1.1.
+    #[serde(default)]
+    pub kernel_sum_high: f64,
     /// Refinement passes run (refinement is repeated while the radiosity moves).
     #[serde(default)]
     pub refinements: u32,
