@@ -6,7 +6,8 @@
 //!                     points of the object (light sampling for the emitters, one path for the
 //!                     rest); the path-traced values are cached in $TMPDIR/hirad-audit
 //!         self        per object: solver irradiance against what cosine rays from the same
-//!                     points gather from the solution's own radiosity (exact visibility):
+//!                     open points (those the solver does not leave out) gather from the
+//!                     solution's own radiosity (exact visibility):
 //!                     the transport error of one gather, without interreflection
 //!         image       the scene camera's view at half its width and height: mean luminance of
 //!                     the per-vertex (Gouraud) image `validate` draws, of the leaf elements'
@@ -376,8 +377,16 @@ fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
 }
 
 /// What cosine rays gather from the solution's own radiosity at random points of each object.
-fn self_consistency(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+fn self_consistency(
+    o: &Opts,
+    scene: &Scene,
+    tree: &ClusterTree,
+    caster: &RayCaster,
+    sol: &Solution,
+) {
     let el = &sol.elements;
+    // The solver's irradiance is the mean over the points it does not leave out.
+    let covers = hirad::radiosity::overlap::Covers::build(scene, tree, o.two_sided);
     let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
     let m = o.samples;
     let leaf_b = |t: u32, back: bool, p: Vec3| el.b[leaf_at(sol, root(sol, t, back), p) as usize];
@@ -392,6 +401,9 @@ fn self_consistency(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution)
             }
             let nrm = e.normal;
             let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+            if covers.covered(t as u32, p) {
+                continue;
+            }
             let lf = leaf_at(sol, root(sol, t as u32, back), p);
             let le = &el.elems[lf as usize];
             hs += ((el.b[lf as usize] - le.emission.as_dvec3()) / le.rho.as_dvec3()).element_sum();
@@ -952,7 +964,7 @@ fn main() {
     let caster = RayCaster::new(&scene, &tree);
     match o.mode.as_str() {
         "irradiance" => irradiance(&o, &scene, &caster, &sol),
-        "self" => self_consistency(&o, &scene, &caster, &sol),
+        "self" => self_consistency(&o, &scene, &tree, &caster, &sol),
         "links" => links(&o, &scene, &tree, &caster, &sol),
         "image" => image(&o, &scene, &caster, &sol),
         "leaves" => leaves(&o, &scene, &caster, &sol),
