@@ -6,7 +6,10 @@
 //! left out of the kernels like covered ones ([`super::overlap`]).
 //!
 //! A point is shut when rays along its normal and tilted 60° from it at six azimuths all hit
-//! a back face first. Each triangle gets a mask: a quadtree in the same 4-way midpoint
+//! a back face first; a back face met at the same distance as another surface's front (a
+//! solid pressed on a wall or a floor) counts, as long as one ray meets a back face alone
+//! (from inside a room of zero-thickness boards every ray meets such pairs). Each triangle
+//! gets a mask: a quadtree in the same 4-way midpoint
 //! subdivision as its surface elements, split where its probe points disagree.
 //! Two-sided solves have no masks: there the inside of a solid is a cavity that receives.
 
@@ -215,19 +218,42 @@ fn cell(
 
 /// Rays from `p` along normal `n` and tilted 60° from it at six azimuths all meet a back face
 /// first (one ray that does not is enough to open the point: a cloud of loose one-sided
-/// faces is not a solid).
+/// faces is not a solid). A front face with a back face at the same distance is a solid
+/// pressed against another surface (a box's side on a wall) and counts as a back face, but at
+/// least one ray must meet a back face alone: zero-thickness boards (two faces back to back)
+/// show the same pair from outside.
 fn shut_point(scene: &Scene, caster: &RayCaster, p: Vec3, n: Vec3, tmin: f32) -> bool {
     let (t, b) = n.any_orthonormal_pair();
-    let back = |d: Vec3| {
-        caster
-            .closest(p, d, tmin, f32::INFINITY)
-            .is_some_and(|h| scene.normals[h.tri as usize].dot(d) > 0.0)
+    // None: open; Some(true): a back face alone; Some(false): a pressed pair.
+    let back = |d: Vec3| -> Option<bool> {
+        let h = caster.closest(p, d, tmin, f32::INFINITY)?;
+        let is_back = |tri: u32| scene.normals[tri as usize].dot(d) > 0.0;
+        // A face of the other kind at the same distance (either may come first).
+        let twin = |want_back: bool| {
+            caster.occluded_except(p, d, (h.t - tmin, h.t + tmin), &|tri| {
+                is_back(tri) != want_back
+            })
+        };
+        if is_back(h.tri) {
+            Some(!twin(false))
+        } else {
+            twin(true).then_some(false)
+        }
     };
-    back(n)
-        && (0..6).all(|k| {
-            let phi = k as f32 * std::f32::consts::FRAC_PI_3;
-            back((n * 0.5 + (t * phi.cos() + b * phi.sin()) * 0.866_025_4).normalize())
-        })
+    let mut alone = false;
+    for k in 0..7 {
+        let d = if k == 0 {
+            n
+        } else {
+            let phi = (k - 1) as f32 * std::f32::consts::FRAC_PI_3;
+            (n * 0.5 + (t * phi.cos() + b * phi.sin()) * 0.866_025_4).normalize()
+        };
+        match back(d) {
+            None => return false,
+            Some(a) => alone |= a,
+        }
+    }
+    alone
 }
 
 #[cfg(test)]
@@ -236,8 +262,9 @@ mod tests {
     use crate::cluster::{ClusterConfig, Strategy};
     use crate::scene::{Material, RawScene, SceneOptions};
 
-    /// A floor quad with an open-bottomed box (outward faces) on its middle third.
-    fn floor_under_box() -> Scene {
+    /// A floor quad with a box (outward faces) on its middle third, open-bottomed or with a
+    /// bottom face lying on the floor.
+    fn floor_under_box(bottom: bool) -> Scene {
         let mut raw = RawScene {
             name: "box".into(),
             materials: vec![Material::diffuse("white", Vec3::splat(0.5))],
@@ -263,6 +290,10 @@ mod tests {
             raw.triangles.push([a, b + 4, b]);
             raw.triangles.push([a, a + 4, b + 4]);
         }
+        if bottom {
+            raw.triangles.push([4, 5, 6]);
+            raw.triangles.push([4, 6, 7]);
+        }
         raw.tri_material = vec![0; raw.triangles.len()];
         raw.tri_object = vec![0; raw.triangles.len()];
         Scene::from_raw(raw, &SceneOptions::default()).expect("scene")
@@ -270,7 +301,13 @@ mod tests {
 
     #[test]
     fn floor_under_a_box_is_shut_and_beside_it_open() {
-        let scene = floor_under_box();
+        for bottom in [false, true] {
+            floor_under_box_case(bottom);
+        }
+    }
+
+    fn floor_under_box_case(bottom: bool) {
+        let scene = floor_under_box(bottom);
         let centre = Vec3::new(1.5, 0.5, 1.5);
         for t in 2..scene.num_triangles() {
             let out = scene.tri_centroid(t) - centre;
@@ -278,6 +315,7 @@ mod tests {
         }
         let tree = ClusterTree::build(&scene, Strategy::Kdt, &ClusterConfig::default());
         let m = ShutMasks::build(&scene, &tree, false);
+        assert!(m.shut(0, Vec3::new(1.6, 0.0, 1.4)), "bottom {bottom}");
         assert_eq!(m.shut_triangles(), 2, "the two floor triangles");
         // Sample the floor on a grid: shut exactly under the box, up to the mask's cells.
         let (mut wrong, mut total) = (0, 0);
@@ -297,5 +335,93 @@ mod tests {
         }
         assert_eq!(wrong, 0, "of {total} floor points");
         assert!(ShutMasks::build(&scene, &tree, true).shut_triangles() == 0);
+    }
+
+    /// A scene of quads `(corner, u, v)`, each facing `u × v`.
+    fn quads(q: &[(Vec3, Vec3, Vec3)]) -> Scene {
+        let mut raw = RawScene {
+            name: "quads".into(),
+            materials: vec![Material::diffuse("white", Vec3::splat(0.5))],
+            objects: vec!["all".into()],
+            ..Default::default()
+        };
+        for &(c, u, v) in q {
+            let i = raw.positions.len() as u32;
+            raw.positions.extend([c, c + u, c + u + v, c + v]);
+            raw.triangles.extend([[i, i + 1, i + 2], [i, i + 2, i + 3]]);
+        }
+        raw.tri_material = vec![0; raw.triangles.len()];
+        raw.tri_object = vec![0; raw.triangles.len()];
+        Scene::from_raw(raw, &SceneOptions::default()).expect("scene")
+    }
+
+    /// The six faces of the box `[lo, hi]`, facing out.
+    fn box_out(lo: Vec3, hi: Vec3) -> Vec<(Vec3, Vec3, Vec3)> {
+        let d = hi - lo;
+        let (x, y, z) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+        vec![
+            (lo, x, z),
+            (lo + y, z, x),
+            (lo, z, y),
+            (lo + x, y, z),
+            (lo, y, x),
+            (lo + z, x, y),
+        ]
+    }
+
+    /// A closed box pressed into a corner: its bottom on the floor, one side on a wall. The
+    /// rays from under it that leave through the pressed side meet the wall's front and the
+    /// box's back at the same distance; those points are inside the box all the same.
+    #[test]
+    fn a_box_pressed_on_floor_and_wall_shuts_both_under_it() {
+        let mut q = vec![
+            (Vec3::ZERO, Vec3::Z * 3.0, Vec3::X * 3.0),
+            (Vec3::X, Vec3::Y * 3.0, Vec3::Z * 3.0),
+        ];
+        q.extend(box_out(Vec3::new(1.0, 0.0, 1.0), Vec3::new(2.0, 1.0, 2.0)));
+        let scene = quads(&q);
+        assert!(scene.normals[0].y > 0.9 && scene.normals[2].x > 0.9);
+        let tree = ClusterTree::build(&scene, Strategy::Kdt, &ClusterConfig::default());
+        let m = ShutMasks::build(&scene, &tree, false);
+        let (mut wrong, mut total) = (0, 0);
+        for i in 0..20 {
+            for j in 0..20 {
+                let (a, b) = (0.05 + 0.9 * i as f32 / 19.0, 0.05 + 0.9 * j as f32 / 19.0);
+                // Floor under the box, and the wall behind it.
+                let floor = Vec3::new(1.0 + a, 0.0, 1.0 + b);
+                let wall = Vec3::new(1.0, a, 1.0 + b);
+                let ft = if floor.x > floor.z { 0 } else { 1 };
+                let wt = if wall.y > wall.z - 1.0 { 2 } else { 3 };
+                let ft = (0..2).find(|&t| in_tri(&scene, t, floor)).unwrap_or(ft);
+                let wt = (2..4).find(|&t| in_tri(&scene, t, wall)).unwrap_or(wt);
+                total += 2;
+                wrong += !m.shut(ft, floor) as u32 + !m.shut(wt, wall) as u32;
+            }
+        }
+        assert_eq!(wrong, 0, "of {total} points under the box");
+        // Beside the box the floor and the wall stay open.
+        assert!(!m.shut(0, Vec3::new(2.5, 0.0, 0.5)) && !m.shut(1, Vec3::new(2.5, 0.0, 2.7)));
+    }
+
+    /// A closed room whose walls are zero-thickness boards (an inward and an outward face
+    /// back to back): every ray from inside meets such a pair, and nothing is shut.
+    #[test]
+    fn a_room_of_thin_boards_shuts_nothing() {
+        let mut q = box_out(Vec3::ZERO, Vec3::splat(3.0));
+        let inward: Vec<_> = q.iter().map(|&(c, u, v)| (c, v, u)).collect();
+        q.extend(inward);
+        q.extend(box_out(Vec3::splat(1.0), Vec3::splat(1.5)));
+        let scene = quads(&q);
+        let tree = ClusterTree::build(&scene, Strategy::Kdt, &ClusterConfig::default());
+        let m = ShutMasks::build(&scene, &tree, false);
+        assert_eq!(m.shut_triangles(), 0);
+    }
+
+    fn in_tri(scene: &Scene, t: u32, p: Vec3) -> bool {
+        let [a, b, c] = scene.tri_vertices(t as usize);
+        let n = (b - a).cross(c - a);
+        [(a, b), (b, c), (c, a)]
+            .iter()
+            .all(|&(u, v)| (v - u).cross(p - u).dot(n) >= -1e-6)
     }
 }
