@@ -598,7 +598,8 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                             facing_weight(e.centroid, e.normal, se.centroid, se.facing_normal())
                         }
                     };
-                    e.area as f64 * w * contrib
+                    // The solver delivers to the open part only (`Elements::open`).
+                    e.area as f64 * el.open[r as usize] as f64 * w * contrib
                 })
                 .sum();
             let recv = ByArea::new(recv, |r| el.elems[r as usize].area as f64);
