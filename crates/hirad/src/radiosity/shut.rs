@@ -230,7 +230,7 @@ fn shut_point(scene: &Scene, caster: &RayCaster, p: Vec3, n: Vec3, tmin: f32) ->
         let is_back = |tri: u32| scene.normals[tri as usize].dot(d) > 0.0;
         // A face of the other kind at the same distance (either may come first).
         let twin = |want_back: bool| {
-            caster.occluded_except(p, d, (h.t - tmin, h.t + tmin), &|tri| {
+            caster.occluded_except(p, d, ((h.t - tmin).max(tmin), h.t + tmin), &|tri| {
                 is_back(tri) != want_back
             })
         };
