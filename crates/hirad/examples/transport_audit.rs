@@ -474,12 +474,6 @@ fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &S
                     Some(h) if scene.normals[h.tri as usize].dot(d) > 0.0 && !o.two_sided => {
                         nb += 1;
                         wb += b;
-                        if b > 0.0 && std::env::var_os("AUDIT_DBG").is_some() && nb % 50 == 1 {
-                            eprintln!(
-                                "obj {obj} tri {t} p {p:?} d {d:?} t {:.4} hit obj {} b {b:.3}",
-                                h.t, scene.tri_object[h.tri as usize]
-                            );
-                        }
                     }
                     Some(_) => {}
                     None => {
