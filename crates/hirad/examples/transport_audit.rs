@@ -35,7 +35,7 @@ use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::NoProgress;
 use hirad::radiosity::element::{facing_weight, Element, Kind};
-use hirad::radiosity::formfactor::sample_triangle;
+use hirad::radiosity::formfactor::{point_to_polygon, sample_triangle, sample_triangle_above};
 use hirad::radiosity::{solve, Solution, SolverConfig, VisibilityMode};
 use hirad::ray::RayCaster;
 use hirad::render::{PathTracer, ReferenceOptions};
@@ -178,8 +178,10 @@ fn leaf_at(sol: &Solution, root: u32, p: Vec3) -> u32 {
     id
 }
 
-/// Irradiance (channel sum) at `p` (normal `n`) from the emitters' fronts by light sampling,
-/// each emitter point weighted by `radiance(triangle, point)`.
+/// Irradiance (channel sum) at `p` (normal `n`) from the emitters' fronts, each emitter point
+/// weighted by `radiance(triangle, point)`. With few emitting triangles (≤ 64), each one's
+/// analytic point-to-polygon form factor times one shadow ray to a point of its part above
+/// `p`'s plane (near lamps light sampling's 1/r² tail makes means unusable); else light sampling.
 fn direct(
     scene: &Scene,
     caster: &RayCaster,
@@ -191,13 +193,37 @@ fn direct(
     if ems.ids.is_empty() {
         return 0.0;
     }
+    let o = p + n * OFF;
+    if ems.ids.len() <= 64 {
+        let mut sum = 0.0;
+        for &t in &ems.ids {
+            let v = scene.tri_vertices(t as usize);
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            let Some(y) = sample_triangle_above(p, n, &v, u1, u2) else {
+                continue;
+            };
+            let d = y - o;
+            let len = d.length();
+            if len <= 0.0 || caster.occluded(o, d / len, 0.0, len * (1.0 - 1e-4)) {
+                continue;
+            }
+            let poly = v.map(|a| a.as_dvec3());
+            let f = point_to_polygon(
+                p.as_dvec3(),
+                n.as_dvec3(),
+                &poly,
+                scene.normals[t as usize].as_dvec3(),
+            );
+            sum += PI * f * radiance(t, y);
+        }
+        return sum;
+    }
     let t = ems.pick(rng);
     let y = sample_triangle(
         &scene.tri_vertices(t as usize),
         rng.next_f32(),
         rng.next_f32(),
     );
-    let o = p + n * OFF;
     let d = y - o;
     let r2 = d.length_squared();
     let len = r2.sqrt();
@@ -707,6 +733,9 @@ fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     for t in 0..scene.num_triangles() as u32 {
         if scene.tri_object[t as usize] as usize == obj {
             el.leaves_of(root(sol, t, false), &mut ids);
+            if o.two_sided {
+                el.leaves_of(root(sol, t, true), &mut ids);
+            }
         }
     }
     let rows: Vec<(u32, f64, f64, f64)> = ids
