@@ -36,6 +36,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::NoProgress;
 use hirad::radiosity::element::{facing_weight, Element, Kind};
 use hirad::radiosity::formfactor::{point_to_polygon, sample_triangle, sample_triangle_above};
+use hirad::radiosity::overlap::Covers;
 use hirad::radiosity::{solve, Solution, SolverConfig, VisibilityMode};
 use hirad::ray::RayCaster;
 use hirad::render::{PathTracer, ReferenceOptions};
@@ -256,9 +257,12 @@ struct Estimate {
 }
 
 /// Per object and side: area-weighted solver irradiance and `estimate(object, side, points)`.
+/// Per object (and side): the solver's mean irradiance over its open area (the parts no
+/// coplanar triangle covers and no solid shuts, where the solver's H is defined), and `estimate`.
 fn per_object(
     scene: &Scene,
     sol: &Solution,
+    covers: &Covers,
     two_sided: bool,
     estimate: impl Fn(usize, bool, &ByArea) -> Estimate + Sync,
 ) -> Vec<Row> {
@@ -275,15 +279,29 @@ fn per_object(
             .filter(|(_, ts)| !ts.is_empty())
             .map(|(o, ts)| {
                 let tris = ByArea::new(ts.clone(), |t| scene.areas[t as usize] as f64);
-                let area = tris.total();
-                let solver = ts
-                    .iter()
-                    .map(|&t| {
-                        scene.areas[t as usize] as f64
-                            * sol.triangle_irradiance(t, back).element_sum()
-                    })
-                    .sum::<f64>()
-                    / area;
+                // Leaf by leaf: H over the leaf's open area (for ρ = 0, the triangle's H).
+                let (mut area, mut sum, mut leaves) = (0.0f64, 0.0f64, Vec::new());
+                for &t in ts {
+                    leaves.clear();
+                    sol.elements.leaves_of(root(sol, t, back), &mut leaves);
+                    for &id in &leaves {
+                        let e = &sol.elements.elems[id as usize];
+                        let a = e.area as f64 * covers.open_fraction(t, &e.verts);
+                        let rho = e.rho.as_dvec3();
+                        let h = if rho.max_element() > 0.0 {
+                            let b = sol.elements.b[id as usize] - e.emission.as_dvec3();
+                            (0..3)
+                                .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
+                                .sum()
+                        } else {
+                            sol.triangle_irradiance(t, back).element_sum()
+                        };
+                        area += a;
+                        sum += a * h;
+                    }
+                }
+                let area = area.max(1e-30);
+                let solver = sum / area;
                 let e = estimate(o, back, &tris);
                 Row {
                     object: o,
@@ -334,7 +352,7 @@ fn print_rows(scene: &Scene, mut rows: Vec<Row>, what: &str) {
 }
 
 /// Path-traced irradiance at random points of each object (cached per scene and seed).
-fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
     let ropts = ReferenceOptions {
         two_sided: o.two_sided,
         ..Default::default()
@@ -345,8 +363,12 @@ fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     let _ = std::fs::create_dir_all(&cache);
     let key = o.scene.replace(['/', '.'], "_");
     let m = o.samples;
-    let rows = per_object(scene, sol, o.two_sided, |obj, back, tris| {
-        let file = cache.join(format!("{key}_{}_{obj}_{}_{m}", o.two_sided, back as u8));
+    let covers = Covers::build(scene, tree, o.two_sided);
+    let rows = per_object(scene, sol, &covers, o.two_sided, |obj, back, tris| {
+        let file = cache.join(format!(
+            "{key}_{}_{obj}_{}_{m}_open",
+            o.two_sided, back as u8
+        ));
         if let Some(v) = std::fs::read_to_string(&file).ok().and_then(|c| {
             let v: Vec<f64> = c
                 .split_whitespace()
@@ -362,7 +384,7 @@ fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
             };
         }
         let mut rng = SplitMix64::new(obj as u64 * 7919 + back as u64);
-        let (mut s, mut s2, mut sd) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut s, mut s2, mut sd, mut open) = (0.0f64, 0.0f64, 0.0f64, 0usize);
         for _ in 0..m {
             let t = tris.pick(&mut rng) as usize;
             let n = if back {
@@ -371,6 +393,12 @@ fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
                 scene.normals[t]
             };
             let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+            // Covered and shut points are not part of the receiver (the solver's H is the
+            // mean over open points): they count as the mean, i.e. are left out.
+            if covers.covered(t as u32, p) {
+                continue;
+            }
+            open += 1;
             let d = cosine_dir(n, rng.next_f32(), rng.next_f32());
             let org = p + n * OFF;
             // Indirect: one path, less the emission of a directly hit emitter front.
@@ -388,9 +416,10 @@ fn irradiance(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
             s2 += h * h;
             sd += dh;
         }
-        let mean = s / m as f64;
-        let se = ((s2 / m as f64 - mean * mean).max(0.0) / m as f64).sqrt();
-        let dm = sd / m as f64;
+        let n = open.max(1) as f64;
+        let mean = s / n;
+        let se = ((s2 / n - mean * mean).max(0.0) / n).sqrt();
+        let dm = sd / n;
         let _ = std::fs::write(&file, format!("{mean} {se} {dm}"));
         Estimate {
             value: mean,
@@ -412,11 +441,11 @@ fn self_consistency(
 ) {
     let el = &sol.elements;
     // The solver's irradiance is the mean over the points it does not leave out.
-    let covers = hirad::radiosity::overlap::Covers::build(scene, tree, o.two_sided);
     let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
     let m = o.samples;
     let leaf_b = |t: u32, back: bool, p: Vec3| el.b[leaf_at(sol, root(sol, t, back), p) as usize];
-    let rows = per_object(scene, sol, o.two_sided, |obj, back, tris| {
+    let covers = Covers::build(scene, tree, o.two_sided);
+    let rows = per_object(scene, sol, &covers, o.two_sided, |obj, back, tris| {
         let mut rng = SplitMix64::new(obj as u64 * 31 + back as u64);
         let (mut hs, mut hm, mut hd, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
         for _ in 0..m {
@@ -430,6 +459,7 @@ fn self_consistency(
             if covers.covered(t as u32, p) {
                 continue;
             }
+            n += 1;
             let lf = leaf_at(sol, root(sol, t as u32, back), p);
             let le = &el.elems[lf as usize];
             hs += ((el.b[lf as usize] - le.emission.as_dvec3()) / le.rho.as_dvec3()).element_sum();
@@ -469,7 +499,7 @@ fn self_consistency(
 fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
     let el = &sol.elements;
     // Points the solver leaves out (under a coplanar face or inside a solid) emit nothing.
-    let covers = hirad::radiosity::overlap::Covers::build(scene, tree, o.two_sided);
+    let covers = Covers::build(scene, tree, o.two_sided);
     let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
     for t in 0..scene.num_triangles() {
         by[scene.tri_object[t] as usize].push(t as u32);
@@ -718,8 +748,10 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
     }
 }
 
-/// Per leaf of one object: solver irradiance (from B = E + ρH) against direct light.
-fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
+/// Per leaf of one object: solver irradiance (from B = E + ρH) against direct light, both
+/// over the leaf's open points (those no coplanar triangle covers and no solid shuts, as the
+/// solver counts them).
+fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
     let name = o.object.as_deref().expect("leaves needs --object NAME");
     let obj = scene
         .objects
@@ -729,6 +761,7 @@ fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
     let el = &sol.elements;
     let m = (o.samples / 100).max(16);
+    let covers = Covers::build(scene, tree, o.two_sided);
     let mut ids = Vec::new();
     for t in 0..scene.num_triangles() as u32 {
         if scene.tri_object[t as usize] as usize == obj {
@@ -748,14 +781,19 @@ fn leaves(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
                 .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
                 .sum::<f64>();
             let mut rng = SplitMix64::for_item(0x1EAF, id as u64);
-            let mut sum = 0.0;
+            let (mut sum, mut open) = (0.0, 0usize);
             for _ in 0..m {
                 let p = sample_triangle(&e.verts, rng.next_f32(), rng.next_f32());
+                if covers.covered(e.tri, p) {
+                    continue;
+                }
+                open += 1;
                 sum += direct(scene, caster, &ems, (p, e.normal), &mut rng, |t, _| {
                     scene.material_of(t as usize).emission.element_sum() as f64
                 });
             }
-            (id, e.area as f64, h, sum / m as f64)
+            let open_area = e.area as f64 * open as f64 / m as f64;
+            (id, open_area, h, sum / open.max(1) as f64)
         })
         .collect();
     let (sa, sh, sd) = rows.iter().fold((0.0, 0.0, 0.0), |a, r| {
@@ -993,11 +1031,11 @@ fn main() {
     );
     let caster = RayCaster::new(&scene, &tree);
     match o.mode.as_str() {
-        "irradiance" => irradiance(&o, &scene, &caster, &sol),
+        "irradiance" => irradiance(&o, &scene, &tree, &caster, &sol),
         "self" => self_consistency(&o, &scene, &tree, &caster, &sol),
         "links" => links(&o, &scene, &tree, &caster, &sol),
         "image" => image(&o, &scene, &caster, &sol),
-        "leaves" => leaves(&o, &scene, &caster, &sol),
+        "leaves" => leaves(&o, &scene, &tree, &caster, &sol),
         "shut" => shut(&o, &scene, &tree, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
