@@ -41,6 +41,16 @@ pub enum Strategy {
     Sah,
 }
 
+choice!(Strategy, "clustering strategy",
+    Kdt => "kdt",
+    Obt => "obt",
+    Okdt => "okdt",
+    OkdtP => "okdt-p",
+    TfOct => "tf-oct",
+    Proxi => "proxi",
+    Sah => "sah",
+);
+
 impl Strategy {
     /// Every strategy, in the order tables list them.
     pub const ALL: [Strategy; 7] = [
@@ -52,32 +62,6 @@ impl Strategy {
         Strategy::Proxi,
         Strategy::Sah,
     ];
-
-    /// The name used on the command line and in outputs.
-    pub fn name(self) -> &'static str {
-        match self {
-            Strategy::Kdt => "kdt",
-            Strategy::Obt => "obt",
-            Strategy::Okdt => "okdt",
-            Strategy::OkdtP => "okdt-p",
-            Strategy::TfOct => "tf-oct",
-            Strategy::Proxi => "proxi",
-            Strategy::Sah => "sah",
-        }
-    }
-
-    /// Parse a name as [`Strategy::name`] gives it.
-    pub fn parse(s: &str) -> Result<Strategy> {
-        Strategy::ALL
-            .into_iter()
-            .find(|x| x.name() == s.to_ascii_lowercase())
-            .ok_or_else(|| {
-                Error::Config(format!(
-                    "unknown clustering strategy '{s}' (one of: {})",
-                    Strategy::ALL.map(|x| x.name()).join(", ")
-                ))
-            })
-    }
 
     /// Parse a comma-separated list, `all` meaning every strategy.
     pub fn parse_list(s: &str) -> Result<Vec<Strategy>> {
