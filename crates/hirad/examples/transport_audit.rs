@@ -34,7 +34,7 @@
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::NoProgress;
-use hirad::radiosity::element::{facing_weight, Element, Kind};
+use hirad::radiosity::element::{facing_weight, Element, Elements, Kind};
 use hirad::radiosity::formfactor::{point_to_polygon, sample_triangle, sample_triangle_above};
 use hirad::radiosity::overlap::Covers;
 use hirad::radiosity::{solve, Solution, SolverConfig, VisibilityMode};
@@ -256,7 +256,16 @@ struct Estimate {
     solver: Option<f64>,
 }
 
-/// Per object and side: area-weighted solver irradiance and `estimate(object, side, points)`.
+/// Irradiance (channel sum) of leaf `id` from its radiosity, `H = (B − E) / ρ` per channel of
+/// non-zero reflectance.
+fn leaf_irradiance(el: &Elements, id: u32) -> f64 {
+    let e = &el.elems[id as usize];
+    let (rho, b) = (e.rho.as_dvec3(), el.b[id as usize] - e.emission.as_dvec3());
+    (0..3)
+        .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
+        .sum()
+}
+
 /// Per object (and side): the solver's mean irradiance over its open area (the parts no
 /// coplanar triangle covers and no solid shuts, where the solver's H is defined), and `estimate`.
 fn per_object(
@@ -287,12 +296,8 @@ fn per_object(
                     for &id in &leaves {
                         let e = &sol.elements.elems[id as usize];
                         let a = e.area as f64 * covers.open_fraction(t, &e.verts);
-                        let rho = e.rho.as_dvec3();
-                        let h = if rho.max_element() > 0.0 {
-                            let b = sol.elements.b[id as usize] - e.emission.as_dvec3();
-                            (0..3)
-                                .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
-                                .sum()
+                        let h = if e.rho.max_element() > 0.0 {
+                            leaf_irradiance(&sol.elements, id)
                         } else {
                             sol.triangle_irradiance(t, back).element_sum()
                         };
@@ -459,10 +464,8 @@ fn self_consistency(
             if covers.covered(t as u32, p) {
                 continue;
             }
-            n += 1;
             let lf = leaf_at(sol, root(sol, t as u32, back), p);
-            let le = &el.elems[lf as usize];
-            hs += ((el.b[lf as usize] - le.emission.as_dvec3()) / le.rho.as_dvec3()).element_sum();
+            hs += leaf_irradiance(el, lf);
             let dh = direct(scene, caster, &ems, (p, nrm), &mut rng, |t, y| {
                 leaf_b(t, false, y).element_sum() / PI
             });
@@ -775,11 +778,7 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
         .par_iter()
         .map(|&id| {
             let e = &el.elems[id as usize];
-            let rho = e.rho.as_dvec3();
-            let b = el.b[id as usize] - e.emission.as_dvec3();
-            let h = (0..3)
-                .map(|c| if rho[c] > 0.0 { b[c] / rho[c] } else { 0.0 })
-                .sum::<f64>();
+            let h = leaf_irradiance(el, id);
             let mut rng = SplitMix64::for_item(0x1EAF, id as u64);
             let (mut sum, mut open) = (0.0, 0usize);
             for _ in 0..m {
