@@ -30,6 +30,12 @@
 //!   --rays N  --eps-rel X  --min-area-rel X  override the preset's solver settings;
 //!   --iters N stops the solver after N iterations (1: direct light only)
 //!   --depth N (image: the path tracer's bounces, 1: direct light only)
+//!   --fov DEGREES (image: the camera's vertical field of view)
+//!   objlinks: every link into a surface element of --object, power delivered against brute
+//!   force (as `leaf`, N/100 points per link), summed by source class and by source object
+//!   --leaf ID (leaf: every link into the leaf and its surface ancestors, with the irradiance
+//!   it delivers against brute force over the link's receiver from the source's leaves)
+//!   --rows N (leaves: how many leaves to list, largest difference first; 30)
 //! ```
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -63,6 +69,9 @@ struct Opts {
     min_area_rel: Option<f64>,
     iters: Option<u32>,
     depth: Option<u32>,
+    rows: usize,
+    leaf: Option<u32>,
+    fov: Option<f32>,
 }
 
 fn parse() -> Opts {
@@ -84,6 +93,9 @@ fn parse() -> Opts {
         min_area_rel: None,
         iters: None,
         depth: None,
+        rows: 30,
+        leaf: None,
+        fov: None,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -100,6 +112,9 @@ fn parse() -> Opts {
             "--min-area-rel" => o.min_area_rel = Some(val().parse().expect("--min-area-rel X")),
             "--iters" => o.iters = Some(val().parse().expect("--iters N")),
             "--depth" => o.depth = Some(val().parse().expect("--depth N")),
+            "--rows" => o.rows = val().parse().expect("--rows N"),
+            "--leaf" => o.leaf = Some(val().parse().expect("--leaf ID")),
+            "--fov" => o.fov = Some(val().parse().expect("--fov DEGREES")),
             m if !m.starts_with("--") => o.mode = m.into(),
             _ => panic!("unknown option {x}"),
         }
@@ -813,7 +828,7 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
             .abs()
             .total_cmp(&(a.1 * (a.2 - a.3)).abs())
     });
-    for r in rows.iter().take(30) {
+    for r in rows.iter().take(o.rows) {
         let e = &el.elems[r.0 as usize];
         println!(
             "{:8} {:9} {:8.5} {:9.4} {:9.4} {:7.3}  {:.3?} n {:.2?}",
@@ -837,6 +852,9 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     let mut view = CameraView::from_camera(&scene.default_camera());
     view.width = (view.width / 2).max(1);
     view.height = (view.height / 2).max(1);
+    if let Some(f) = o.fov {
+        view.fov_deg = f;
+    }
     let raster = RasterOptions {
         back_faces: if o.two_sided {
             BackFaces::Cull
@@ -997,6 +1015,212 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     }
 }
 
+/// Every link into surface leaf `--leaf` and its surface ancestors: irradiance delivered
+/// (`K·B`, channel sum) against brute force over the link's receiver (N/10 open points, the
+/// analytic form factor to each leaf of the source times one shadow ray, the leaf's own B).
+fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
+    let el = &sol.elements;
+    let covers = Covers::build(scene, tree, o.two_sided);
+    let leaf = o.leaf.expect("leaf needs --leaf ID");
+    let mut chain = vec![leaf];
+    while let Some(&id) = chain.last() {
+        let p = el.elems[id as usize].parent;
+        if p == u32::MAX || el.elems[p as usize].kind != Kind::Surface {
+            break;
+        }
+        chain.push(p);
+    }
+    let m = (o.samples / 10).max(64);
+    let mut tot = (0.0, 0.0);
+    println!("leaf {leaf}: H {:.3}", leaf_irradiance(el, leaf));
+    println!(
+        "{:>8} {:>9} {:>8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>7}",
+        "recv", "r.area", "src", "kind", "s.area", "k", "K·B", "brute", "ratio"
+    );
+    for &r in &chain {
+        let re = &el.elems[r as usize];
+        for l in sol.links.links.iter().filter(|l| l.recv == r) {
+            let se = &el.elems[l.src as usize];
+            let got = sol.links.gather(l, &el.b).element_sum();
+            let mut leaves = Vec::new();
+            el.leaves_of(l.src, &mut leaves);
+            let mut rng = SplitMix64::for_item(0x001E_AF11, ((r as u64) << 32) | l.src as u64);
+            let want = brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
+            tot.0 += got;
+            tot.1 += want;
+            let src_obj = &scene.objects
+                [scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize];
+            println!(
+                "{r:8} {:9.5} {:8} {:>7} {:9.4} {:9.5} {:9.3} {:9.3} {:7.3}  {src_obj} back {} {:.3?} n {:.2?}",
+                re.area,
+                l.src,
+                if se.kind == Kind::Cluster { "cluster" } else { "surface" },
+                se.area,
+                l.k,
+                got,
+                want,
+                got / want,
+                se.back,
+                se.centroid,
+                se.normal
+            );
+            if se.kind == Kind::Cluster && got > 2.0 * want && l.samples != u32::MAX {
+                let st = l.samples as usize;
+                let pl = sol.links.per_link as usize;
+                for &(mm, w) in &sol.links.samples[st..st + pl] {
+                    if mm == u32::MAX {
+                        println!("      sample: none");
+                        continue;
+                    }
+                    let e = &el.elems[mm as usize];
+                    let obj = &scene.objects[scene.tri_object[e.tri as usize] as usize];
+                    println!(
+                        "      sample: {mm} {obj} back {} area {:.4} w {w:.5} B {:.3} centroid {:.3?} n {:.2?}",
+                        e.back,
+                        e.area,
+                        el.b[mm as usize].element_sum(),
+                        e.centroid,
+                        e.normal
+                    );
+                }
+                println!(
+                    "      receiver centroid {:.3?} n {:.2?}",
+                    re.centroid, re.normal
+                );
+            }
+        }
+    }
+    println!(
+        "sum: K·B {:.3}, brute {:.3}, ratio {:.4}",
+        tot.0,
+        tot.1,
+        tot.0 / tot.1
+    );
+}
+
+/// Brute-force irradiance over receiver element `re` (open points) from the leaves of `src`
+/// (analytic form factor to each leaf times one shadow ray, the leaf's own B).
+fn brute_irradiance(
+    el: &Elements,
+    covers: &Covers,
+    caster: &RayCaster,
+    re: &Element,
+    src: u32,
+    m: usize,
+    rng: &mut SplitMix64,
+) -> f64 {
+    let mut leaves = Vec::new();
+    el.leaves_of(src, &mut leaves);
+    let (mut sum, mut open) = (0.0, 0usize);
+    for _ in 0..m {
+        let x = sample_triangle(&re.verts, rng.next_f32(), rng.next_f32());
+        if covers.covered(re.tri, x) {
+            continue;
+        }
+        open += 1;
+        for &s in &leaves {
+            let es = &el.elems[s as usize];
+            let b = el.b[s as usize].element_sum();
+            if b <= 0.0 {
+                continue;
+            }
+            let poly = es.verts.map(|p| p.as_dvec3());
+            let f = point_to_polygon(
+                x.as_dvec3(),
+                re.normal.as_dvec3(),
+                &poly,
+                es.normal.as_dvec3(),
+            );
+            if f <= 0.0 {
+                continue;
+            }
+            let Some(y) =
+                sample_triangle_above(x, re.normal, &es.verts, rng.next_f32(), rng.next_f32())
+            else {
+                continue;
+            };
+            if covers.covered(es.tri, y) {
+                continue;
+            }
+            let (a, bb) = (x + re.normal * OFF, y + es.normal * OFF);
+            let t = bb - a;
+            let tl = t.length();
+            if !caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
+                sum += f * b;
+            }
+        }
+    }
+    sum / open.max(1) as f64
+}
+
+/// Links into the surface elements of `--object`: delivered power against brute force, by
+/// source class and by source object.
+fn object_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
+    let name = o.object.as_deref().expect("objlinks needs --object NAME");
+    let obj = scene
+        .objects
+        .iter()
+        .position(|n| n == name)
+        .expect("no such object");
+    let el = &sol.elements;
+    let covers = Covers::build(scene, tree, o.two_sided);
+    let m = (o.samples / 100).max(8);
+    let rows: Vec<(usize, usize, f64, f64)> = sol
+        .links
+        .links
+        .par_iter()
+        .filter_map(|l| {
+            let re = &el.elems[l.recv as usize];
+            if re.kind != Kind::Surface || scene.tri_object[re.tri as usize] as usize != obj {
+                return None;
+            }
+            let se = &el.elems[l.src as usize];
+            let mut rng = SplitMix64::for_item(0x0B1, ((l.recv as u64) << 32) | l.src as u64);
+            let a = re.area as f64 * el.open[l.recv as usize] as f64;
+            let got = a * sol.links.gather(l, &el.b).element_sum();
+            let want = a * brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
+            let mut leaves = Vec::new();
+            el.leaves_of(l.src, &mut leaves);
+            let sobj = scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize;
+            let class = if se.kind == Kind::Cluster {
+                0
+            } else if (re.centroid - se.centroid).length() < 2.0 * (re.area.max(se.area)).sqrt() {
+                1
+            } else {
+                2
+            };
+            Some((class, sobj, got, want))
+        })
+        .collect();
+    let names = ["cluster source", "near surface", "far surface"];
+    for (c, n) in names.iter().enumerate() {
+        let (k, g, w) = rows
+            .iter()
+            .filter(|r| r.0 == c)
+            .fold((0, 0.0, 0.0), |a, r| (a.0 + 1, a.1 + r.2, a.2 + r.3));
+        println!(
+            "{n}: {k} links, delivered {g:.2} W, brute {w:.2} W, ratio {:.4}",
+            g / w
+        );
+    }
+    let mut by: std::collections::BTreeMap<usize, (usize, f64, f64)> = Default::default();
+    for r in &rows {
+        let e = by.entry(r.1).or_default();
+        e.0 += 1;
+        e.1 += r.2;
+        e.2 += r.3;
+    }
+    let mut v: Vec<_> = by.into_iter().collect();
+    v.sort_by(|a, b| (b.1 .1 - b.1 .2).abs().total_cmp(&(a.1 .1 - a.1 .2).abs()));
+    for (s, (k, g, w)) in v.iter().take(o.rows) {
+        println!(
+            "  from {:40} {k:7} links {g:10.2} W against {w:10.2} W ratio {:.3}",
+            scene.objects[*s],
+            g / w
+        );
+    }
+}
+
 fn main() {
     let o = parse();
     let scene = Scene::load(&o.scene, &SceneOptions::default()).expect("scene");
@@ -1036,6 +1260,8 @@ fn main() {
         "image" => image(&o, &scene, &caster, &sol),
         "leaves" => leaves(&o, &scene, &tree, &caster, &sol),
         "shut" => shut(&o, &scene, &tree, &caster, &sol),
+        "leaf" => leaf_links(&o, &scene, &tree, &caster, &sol),
+        "objlinks" => object_links(&o, &scene, &tree, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }
