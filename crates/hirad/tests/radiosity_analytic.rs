@@ -85,6 +85,7 @@ fn transfer(scene_tris: &[[Vec3; 3]; 2], emitting: usize) -> f64 {
     let cfg = SolverConfig {
         eps: Some(1e-4),
         min_area: Some(scene.total_area() * 2e-4),
+        shadow_levels: 0,
         visibility: VisibilityMode::None,
         ..SolverConfig::default()
     };
@@ -211,6 +212,8 @@ fn closed_box_loses_nothing() {
         let cfg = SolverConfig {
             eps: Some(eps),
             min_area: Some(0.01),
+            // Every element at the same level: nothing below the minimum area.
+            shadow_levels: 0,
             tol_converge: 1e-7,
             max_iters: 200,
             ..SolverConfig::default()

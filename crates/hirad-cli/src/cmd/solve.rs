@@ -57,6 +57,10 @@ pub struct Args {
     /// surfaces counted (used without --min-area; default 1e-3, preset `reference` 2.5e-4).
     #[arg(long)]
     pub min_area_rel: Option<f64>,
+    /// Levels of subdivision below the minimum area where a shadow boundary crosses an element
+    /// whose light the oracle would still refine [default: 2].
+    #[arg(long)]
+    pub shadow_levels: Option<u32>,
     /// Maximum refine+gather iterations [default: 100].
     #[arg(long)]
     pub max_iters: Option<u32>,
@@ -123,6 +127,9 @@ impl Args {
         }
         if let Some(a) = self.min_area_rel {
             c.min_area_rel = a;
+        }
+        if let Some(n) = self.shadow_levels {
+            c.shadow_levels = n;
         }
         if let Some(n) = self.max_iters {
             c.max_iters = n;

@@ -79,6 +79,10 @@ pub struct SolverConfig {
     pub min_area: Option<f64>,
     /// Relative minimum element area used when `min_area` is `None`.
     pub min_area_rel: f64,
+    /// Levels of 4-way subdivision allowed below the minimum element area for a surface
+    /// receiver whose link the oracle would still refine and whose shadow rays disagree: a
+    /// shadow boundary crossing the element.
+    pub shadow_levels: u32,
     /// Shadow rays per link (stratified, jittered).
     pub shadow_rays: u32,
     /// Visibility estimation.
@@ -116,6 +120,7 @@ impl Default for SolverConfig {
             eps_rel: 0.05,
             min_area: None,
             min_area_rel: 1e-3,
+            shadow_levels: 2,
             shadow_rays: 4,
             visibility: VisibilityMode::Rays,
             vol_ratio: 0.1,
@@ -189,6 +194,12 @@ impl SolverConfig {
             return bad(format!(
                 "min-area-rel must be >= 0, got {}",
                 self.min_area_rel
+            ));
+        }
+        if self.shadow_levels > 8 {
+            return bad(format!(
+                "shadow-levels must be in 0..=8, got {}",
+                self.shadow_levels
             ));
         }
         if self.shadow_rays == 0 || self.shadow_rays > 1024 {

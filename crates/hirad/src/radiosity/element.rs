@@ -353,6 +353,44 @@ impl Elements {
         e.num_children = 4;
     }
 
+    /// The leaf below surface element `id` whose triangle holds point `p` (a point of `id`'s
+    /// triangle): barycentric descent through the midpoint subdivision of [`subdivide`].
+    ///
+    /// [`subdivide`]: Self::subdivide
+    pub fn leaf_at(&self, id: u32, p: Vec3) -> u32 {
+        let e = &self.elems[id as usize];
+        let [a, b, c] = e.verts.map(|v| v.as_dvec3());
+        let (e1, e2, q) = (b - a, c - a, p.as_dvec3() - a);
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (q1, q2) = (q.dot(e1), q.dot(e2));
+        let den = d11 * d22 - d12 * d12;
+        if den <= 0.0 {
+            return id;
+        }
+        let mut v = (d22 * q1 - d12 * q2) / den;
+        let mut w = (d11 * q2 - d12 * q1) / den;
+        let mut u = 1.0 - v - w;
+        let mut id = id;
+        loop {
+            let e = &self.elems[id as usize];
+            if e.num_children == 0 || e.kind != Kind::Surface {
+                return id;
+            }
+            // Children [a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca].
+            let (k, nu, nv, nw) = if u >= 0.5 {
+                (0, 2.0 * u - 1.0, 2.0 * v, 2.0 * w)
+            } else if v >= 0.5 {
+                (1, 2.0 * u, 2.0 * v - 1.0, 2.0 * w)
+            } else if w >= 0.5 {
+                (2, 2.0 * u, 2.0 * v, 2.0 * w - 1.0)
+            } else {
+                (3, 1.0 - 2.0 * w, 1.0 - 2.0 * u, 1.0 - 2.0 * v)
+            };
+            id = e.first_child + k;
+            (u, v, w) = (nu, nv, nw);
+        }
+    }
+
     /// Bytes used by the arena (elements, state arrays, cluster lists).
     pub fn memory_bytes(&self) -> usize {
         self.elems.capacity() * std::mem::size_of::<Element>()

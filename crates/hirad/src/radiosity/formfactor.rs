@@ -17,9 +17,12 @@
 //!   ([`KernelEval::members`]). The oracle's estimate uses the order-2 spherical-harmonic
 //!   projected area (`ClusterOrient::projected_area`).
 //!
-//! Surface pairs closer than the receiver's diameter integrate the unoccluded form factor from
-//! more points (spacing about the gap); points of a triangle that a
-//! coplanar one covers ([`Covers`]) neither receive nor emit.
+//! Surface pairs closer than the receiver's diameter integrate the unoccluded form factor on
+//! a jittered grid (spacing about the gap, half of it for links the hierarchy cannot resolve),
+//! on the source when it is the smaller end (reciprocity); points of a triangle that a
+//! coplanar one covers ([`Covers`]) neither receive nor emit. A subdivided surface source whose
+//! radiosity varies may keep the leaf under each sample, as directional clusters keep their
+//! sampled surfaces.
 //!
 //! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
 //! centre, facing the source (`spec/radiosity.md`); a directional cluster with oriented
@@ -216,6 +219,21 @@ pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
     }
 }
 
+/// `k × k` jittered 2-D samples in [0, 1)², one per cell of a regular grid: stratified in
+/// both dimensions together, unlike [`stratified_2d`], whose error on a function peaked in a
+/// small region (a receiver close above a source) is that of plain Monte Carlo.
+pub fn jittered_grid(k: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
+    out.clear();
+    let inv = 1.0 / k as f32;
+    for i in 0..k {
+        for j in 0..k {
+            let u = ((i as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+            let v = ((j as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+            out.push([u, v]);
+        }
+    }
+}
+
 /// Samples and bounds of a link kernel.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct KernelEval {
@@ -230,14 +248,17 @@ pub struct KernelEval {
     pub rays: u64,
     /// Some samples with a positive kernel see the source and some do not.
     pub mixed: bool,
-    /// Directional cluster sources: per sample, the surface element its point lies on and
-    /// its share of `k`, so that the transfer takes each sampled surface's own radiosity
-    /// (`Σ w_s B_s`) instead of the cluster's average over surfaces the receiver does not see
-    /// (the back faces of two-sided walls, a lamp behind a wall of the same cluster).
+    /// Directional cluster sources, and subdivided surface sources asked for their leaves: per
+    /// sample, the surface element its point lies on and its share of `k`, so that the
+    /// transfer takes each sampled surface's own radiosity (`Σ w_s B_s`) instead of the
+    /// source's average over parts the receiver does not see (the back faces of two-sided
+    /// walls, a lamp behind a wall of the same cluster, a ceiling's bright band right above a
+    /// lamp that hangs in front of it).
     pub members: Vec<(u32, f32)>,
 }
 
 /// Everything needed to evaluate link kernels.
+#[derive(Clone, Copy)]
 pub struct KernelCtx<'a> {
     pub elems: &'a Elements,
     pub tree: &'a ClusterTree,
@@ -510,14 +531,53 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
+    /// True when receiver `i` and source `j` are surfaces closer than the receiver's size, whose
+    /// kernel [`KernelCtx::near_field`] integrates (it keeps no per-sample leaves).
+    pub fn is_near_field(&self, i: u32, j: u32) -> bool {
+        let n = self.n_rays.max(1);
+        near_field_points(&self.end(i), &self.end(j), n, false) > n
+    }
+
+    /// Range `(min, max)` of the unoccluded kernel over a surface receiver `i` (its centroid,
+    /// slightly inset corners and the point nearest the source), no rays; `(0, 0)` for a
+    /// cluster receiver.
+    pub fn spread(&self, i: u32, j: u32) -> (f64, f64) {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let End::Surface { v, n, c, .. } = ri else {
+            return (0.0, 0.0);
+        };
+        let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
+        let mut lo = Self::point_kernel(c, Some(n), &sj);
+        let mut hi = lo;
+        for p in v.into_iter().chain([near]) {
+            let f = Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj);
+            lo = lo.min(f);
+            hi = hi.max(f);
+        }
+        (lo, hi)
+    }
+
     /// Full kernel evaluation of the link (receiver `i`, source `j`) with `n_rays` stratified
     /// jittered shadow rays. `bounds`: also sample the kernel bounds for the `error` oracle.
     pub fn evaluate(&self, i: u32, j: u32, bounds: bool) -> KernelEval {
-        self.evaluate_with(i, j, bounds, None)
+        self.evaluate_with(i, j, bounds, None, false, false)
     }
 
-    /// [`evaluate`](Self::evaluate) reusing an estimate `F̃` already computed for the link.
-    pub fn evaluate_with(&self, i: u32, j: u32, bounds: bool, est: Option<f64>) -> KernelEval {
+    /// [`evaluate`](Self::evaluate) reusing an estimate `F̃` already computed for the link;
+    /// `fine`: the link stays unresolved (the oracle would refine it, neither end can be
+    /// split), so a near-field kernel integrates at twice the density; `leaves`: a subdivided
+    /// surface source keeps, per sample, the leaf its point lies on
+    /// ([`KernelEval::members`]), so that the gather takes the radiosity where the samples
+    /// see the source instead of its mean.
+    pub fn evaluate_with(
+        &self,
+        i: u32,
+        j: u32,
+        bounds: bool,
+        est: Option<f64>,
+        fine: bool,
+        leaves: bool,
+    ) -> KernelEval {
         let (ri, sj) = (self.end(i), self.end(j));
         let n = self.n_rays.max(1);
         let mut rng =
@@ -528,7 +588,7 @@ impl<'a> KernelCtx<'a> {
         stratified_2d(n, &mut rng, &mut sv);
         let est = est.unwrap_or_else(|| self.estimate(i, j));
         if let (End::Surface { .. }, End::Surface { .. }) = (ri, sj) {
-            let m = near_field_points(&ri, &sj, n);
+            let m = near_field_points(&ri, &sj, n, fine);
             if m > n {
                 return self.near_field(&ri, &sj, m, n, est, &mut rng);
             }
@@ -539,13 +599,15 @@ impl<'a> KernelCtx<'a> {
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
         // Some samples that count see the source and some do not.
         let (mut open, mut blocked) = (false, false);
-        let per_member = matches!(
-            sj,
-            End::Cluster {
-                orient: Some(_),
-                ..
-            }
-        );
+        let source_leaves = leaves && matches!(sj, End::Surface { .. });
+        let per_member = source_leaves
+            || matches!(
+                sj,
+                End::Cluster {
+                    orient: Some(_),
+                    ..
+                }
+            );
         let mut members = Vec::new();
         // Directional cluster receiver with oriented reception: its surfaces k with their
         // hand-out weights w_k (`facing_weight`) as a cumulative distribution of A_k·w_k; a
@@ -672,6 +734,9 @@ impl<'a> KernelCtx<'a> {
                 }
                 _ => y,
             };
+            if source_leaves {
+                member = self.elems.leaf_at(j, y);
+            }
             // A covered receiver point is not part of the receiver: the kernel is the mean
             // over its open points. A covered source point emits nothing.
             if self.covered(ex, x) {
@@ -742,9 +807,13 @@ impl<'a> KernelCtx<'a> {
 
     /// Kernel of a surface receiver close to a surface source (closer than its own size): the
     /// unoccluded form factor varies over the receiver on the scale of the gap, so it is
-    /// integrated from `m` stratified points (analytic point-to-polygon, no rays), and the `n`
-    /// shadow rays start from points drawn among them in proportion to their form factor: the
-    /// kernel is `F_u ×` the visible share of the form factor.
+    /// integrated over a jittered grid of `m` points (analytic point-to-polygon, no rays), and
+    /// the `n` shadow rays start from points drawn among them in proportion to their form
+    /// factor: the kernel is `F_u ×` the visible share of the form factor. When the source is
+    /// the smaller end and no part of the receiver is covered, the grid lies on the source and
+    /// `F_u = A_s/A_r · mean F(y → receiver)` (reciprocity): seen from a small source, a large
+    /// receiver close to it fills a smooth part of the hemisphere, while seen from the
+    /// receiver, the small source is a peak a grid resolves poorly.
     fn near_field(
         &self,
         ri: &End,
@@ -754,26 +823,56 @@ impl<'a> KernelCtx<'a> {
         est: f64,
         rng: &mut SplitMix64,
     ) -> KernelEval {
-        let (End::Surface { v: vr, n: nr, .. }, End::Surface { v: vs, .. }) = (*ri, *sj) else {
+        let (
+            End::Surface {
+                v: vr,
+                n: nr,
+                area: ar,
+                tri: tr,
+                ..
+            },
+            End::Surface {
+                v: vs,
+                n: ns,
+                area: as_,
+                ..
+            },
+        ) = (*ri, *sj)
+        else {
             unreachable!("near_field takes two surfaces")
         };
+        let reciprocal = as_ < ar && self.covers.all_open(tr);
+        // Grid end (`g`) and the other end (`o`) with their endpoints for the rays.
+        let (gv, gn, ge, ov, on, oe) = if reciprocal {
+            (vs, ns, sj.endpoint(), vr, nr, ri.endpoint())
+        } else {
+            (vr, nr, ri.endpoint(), vs, ns, sj.endpoint())
+        };
+        let k = (m as f64).sqrt().ceil() as usize;
+        let m = k * k;
         let mut pts = Vec::with_capacity(m);
-        stratified_2d(m, rng, &mut pts);
+        jittered_grid(k, rng, &mut pts);
         let xs: Vec<Vec3> = pts
             .iter()
-            .map(|u| sample_triangle(&vr, u[0], u[1]))
+            .map(|u| sample_triangle(&gv, u[0], u[1]))
             .collect();
+        let other = End::Surface {
+            v: ov,
+            n: on,
+            c: (ov[0] + ov[1] + ov[2]) / 3.0,
+            area: 0.0,
+            tri: 0,
+        };
         let mut cdf = Vec::with_capacity(m);
         let (mut acc, mut fmin, mut fmax) = (0.0f64, f64::INFINITY, 0.0f64);
-        let ex = ri.endpoint();
         let mut n_open = 0usize;
         for &x in &xs {
-            // Covered points are not part of the receiver (zero weight in the cdf below).
-            let f = if self.covered(ex, x) {
+            // Covered points are not part of their end (zero weight in the cdf below).
+            let f = if self.covered(ge, x) {
                 0.0
             } else {
                 n_open += 1;
-                Self::point_kernel(x, Some(nr), sj)
+                Self::point_kernel(x, Some(gn), &other)
             };
             fmin = fmin.min(f);
             fmax = fmax.max(f);
@@ -788,25 +887,32 @@ impl<'a> KernelCtx<'a> {
         }
         let mut sv = Vec::with_capacity(n);
         stratified_2d(n, rng, &mut sv);
-        let ey = sj.endpoint();
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
             let x = xs[cdf.partition_point(|&c| c <= target).min(m - 1)];
-            let y = sample_triangle_above(x, nr, &vs, u[0], u[1])
-                .unwrap_or_else(|| sample_triangle(&vs, u[0], u[1]));
-            let vis = if self.covered(ey, y) {
+            let y = sample_triangle_above(x, gn, &ov, u[0], u[1])
+                .unwrap_or_else(|| sample_triangle(&ov, u[0], u[1]));
+            let vis = if self.covered(oe, y) {
                 0.0
             } else {
-                self.segment(x, ex, y, ey)
+                self.segment(x, ge, y, oe)
             };
             vis_sum += vis;
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
         }
+        let mut fu = acc / n_open.max(1) as f64;
+        if reciprocal {
+            // The mean over the receiver: F_rs = A_s F_sr / A_r, where F_sr is the mean over
+            // the source's open points (covered source points emit nothing).
+            fu *= as_ * (n_open as f64 / m as f64) / ar;
+            fmin *= as_ / ar;
+            fmax *= as_ / ar;
+        }
         KernelEval {
-            k: acc / n_open.max(1) as f64 * vis_sum / n as f64,
+            k: fu * vis_sum / n as f64,
             est,
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,
@@ -963,15 +1069,16 @@ fn closest_on_triangle(v: &[Vec3; 3], p: Vec3) -> Vec3 {
     a + ab * (vb * denom) + ac * (vc * denom)
 }
 
-/// Most points of a near-field kernel ([`KernelCtx::near_field`]).
+/// Most points of a near-field kernel ([`KernelCtx::near_field`]); a fine one may have 4×.
 const NEAR_FIELD_MAX: usize = 64;
 
 /// Points for the unoccluded kernel of surface receiver `r` from surface source `s`: `n` when
 /// the gap between them is at least the receiver's diameter, else enough for a spacing of
-/// about the gap (`(diameter / gap)²`, at most [`NEAR_FIELD_MAX`]). The gap is found by
+/// about the gap (`(diameter / gap)²`, at most [`NEAR_FIELD_MAX`]), or half of it when `fine`
+/// (4× the points, at most 4 × [`NEAR_FIELD_MAX`]). The gap is found by
 /// alternating closest-point projections between the two triangles (it converges to their
 /// distance from above; two rounds are close for the pairs that matter).
-fn near_field_points(r: &End, s: &End, n: usize) -> usize {
+fn near_field_points(r: &End, s: &End, n: usize, fine: bool) -> usize {
     let (End::Surface { v: vr, .. }, End::Surface { v: vs, c: cs, .. }) = (*r, *s) else {
         return n;
     };
@@ -986,8 +1093,13 @@ fn near_field_points(r: &End, s: &End, n: usize) -> usize {
     if gap >= diameter {
         return n;
     }
-    let q = diameter / gap.max(1e-12);
-    ((q * q).ceil().min(NEAR_FIELD_MAX as f64) as usize).max(n)
+    let (density, max) = if fine {
+        (2.0, 4 * NEAR_FIELD_MAX)
+    } else {
+        (1.0, NEAR_FIELD_MAX)
+    };
+    let q = density * diameter / gap.max(1e-12);
+    ((q * q).ceil().min(max as f64) as usize).max(n)
 }
 
 /// Bounding sphere of a link end around its centroid: (centre, radius).

@@ -109,6 +109,11 @@ impl Covers {
         }
     }
 
+    /// True when no part of triangle `tri` is covered or shut.
+    pub fn all_open(&self, tri: u32) -> bool {
+        self.range(tri).is_empty() && !self.shut.has_mask(tri)
+    }
+
     /// The triangles covering parts of triangle `tri`.
     pub fn of(&self, tri: u32) -> &[u32] {
         &self.ids[self.range(tri)]

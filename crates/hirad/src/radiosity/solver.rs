@@ -17,6 +17,13 @@
 //! what any closed scene can hold, `(Φ_emitted + Φ_direct) / (1 − ρ_max)`, is diverging and
 //! stops with an error instead of returning a wrong answer.
 //!
+//! Resolution: both ends of a link at the minimum element area while the oracle still asks
+//! for refinement make the link unresolved; its near-field kernel integrates more finely, and
+//! where its transfer varies across a surface receiver (a shadow boundary, a close source) the
+//! receiver splits up to `shadow_levels` further levels. A subdivided source whose children's
+//! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
+//! samples land on.
+//!
 //! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
 //! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
 //! the sky (uniform radiance `L_sky` over the directions above the horizon of the up axis) is
@@ -27,7 +34,7 @@
 use super::config::{ClusterEmission, Oracle, Reception, SolverConfig};
 use super::element::{facing_weight, Elements, Kind};
 use super::formfactor::{sample_triangle, KernelCtx};
-use super::link::{Link, LinkKind, LinkSet, Sample};
+use super::link::{Link, LinkKind, LinkSet, Sample, NO_SAMPLES};
 use super::oracle::{self, Action};
 use super::overlap::Covers;
 use super::stats::{self, IterStat, SolveStats};
@@ -179,6 +186,8 @@ struct Solver<'a> {
     set: LinkSet,
     eps: f64,
     min_area: f64,
+    /// Minimum area of a surface receiver split at a shadow boundary.
+    shadow_min_area: f64,
     budget_hit: bool,
     peak: u64,
     rays: u64,
@@ -287,6 +296,7 @@ impl<'a> Solver<'a> {
             set: LinkSet::default(),
             eps,
             min_area,
+            shadow_min_area: min_area / 4f64.powi(cfg.shadow_levels as i32),
             budget_hit: false,
             peak: 0,
             rays: 0,
@@ -650,15 +660,70 @@ impl<'a> Solver<'a> {
         if let Some(a) = split(link.est as f64) {
             return (a, link, rays, None);
         }
-        if !link.evaluated() {
+        // A subdivided surface source whose children's radiosity differs by more than the
+        // oracle allows: its samples take the radiosity of the leaf they land on (a link
+        // evaluated before, on the mean, is evaluated again).
+        let leaves = s.kind == Kind::Surface && s.num_children > 0 && {
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::ZERO);
+            for c in self.el.children(sj) {
+                lo = lo.min(self.el.b[c as usize]);
+                hi = hi.max(self.el.b[c as usize]);
+            }
+            oracle::wants_refine(ok, self.eps, link.est as f64, hi - lo, r.rho.as_dvec3())
+        };
+        // A near-field kernel keeps no per-sample leaves: such a link goes down to the
+        // source's children instead.
+        if leaves && allow && ctx.is_near_field(ri, sj) {
+            return (Action::SplitSrc, link, rays, None);
+        }
+        if !link.evaluated() || (leaves && link.samples == NO_SAMPLES) {
+            // The oracle asks for refinement, but both ends are at their minimum size.
+            let unresolved = allow
+                && oracle::wants_refine(
+                    ok,
+                    self.eps,
+                    link.est as f64,
+                    self.el.b[sj as usize],
+                    r.rho.as_dvec3(),
+                );
             let ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let ev = ctx.evaluate_with(ri, sj, false, est_raw);
+                    let ev = ctx.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                     rays += ev.rays;
                     ev
                 }
             };
+            // An unresolved link whose transfer varies across a surface receiver by more than
+            // ε — a shadow boundary crosses it (its rays disagree) or the source is close
+            // beside it (the unoccluded kernel varies) — may split the receiver
+            // `shadow_levels` levels below the minimum area: a view sees the parts of an
+            // element apart (the lit side of a shadow, a ceiling beside a lamp). Keeping or
+            // splitting on the rays' outcome would bias the kept links (those whose rays all
+            // missed the source would stay, those that saw it would be drawn again), so a kept
+            // link that could have split takes a kernel from independent rays.
+            let mut ev = ev;
+            if unresolved && r.kind == Kind::Surface {
+                if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
+                    let (fmin, fmax) = ctx.spread(ri, sj);
+                    let varies = oracle::wants_refine(
+                        Oracle::Error,
+                        self.eps,
+                        fmax - fmin,
+                        self.el.b[sj as usize],
+                        r.rho.as_dvec3(),
+                    );
+                    if ev.mixed || varies {
+                        return (a, *l, rays, None);
+                    }
+                    let fresh = KernelCtx {
+                        seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
+                        ..*ctx
+                    };
+                    ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                    rays += ev.rays;
+                }
+            }
             link.k = ev.k as f32;
             if !ev.members.is_empty() {
                 members = Some(ev.members.into_boxed_slice());
