@@ -27,7 +27,7 @@
 //!   link N/100, at least 16)  --object NAME (links: only links into that object)
 //!   --source-mean (links: Monte Carlo with the source element's mean radiosity, as the link
 //!   transfers it, instead of that of the leaf each sample lands on)
-//!   --rays N  --eps-rel X  --min-area-rel X  override the preset's solver settings;
+//!   --rays N  --eps-rel X  --min-area-rel X  --shadow-levels N  override the preset's solver settings;
 //!   --iters N stops the solver after N iterations (1: direct light only)
 //!   --depth N (image: the path tracer's bounces, 1: direct light only)
 //!   --fov DEGREES (image: the camera's vertical field of view)
@@ -72,6 +72,7 @@ struct Opts {
     rows: usize,
     leaf: Option<u32>,
     fov: Option<f32>,
+    shadow_levels: Option<u32>,
 }
 
 fn parse() -> Opts {
@@ -96,6 +97,7 @@ fn parse() -> Opts {
         rows: 30,
         leaf: None,
         fov: None,
+        shadow_levels: None,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -115,6 +117,7 @@ fn parse() -> Opts {
             "--rows" => o.rows = val().parse().expect("--rows N"),
             "--leaf" => o.leaf = Some(val().parse().expect("--leaf ID")),
             "--fov" => o.fov = Some(val().parse().expect("--fov DEGREES")),
+            "--shadow-levels" => o.shadow_levels = Some(val().parse().expect("--shadow-levels N")),
             m if !m.starts_with("--") => o.mode = m.into(),
             _ => panic!("unknown option {x}"),
         }
@@ -1239,6 +1242,9 @@ fn main() {
     }
     if let Some(n) = o.iters {
         cfg.max_iters = n;
+    }
+    if let Some(n) = o.shadow_levels {
+        cfg.shadow_levels = n;
     }
     if let Some(v) = &o.visibility {
         cfg.visibility = VisibilityMode::parse(v).expect("visibility");
