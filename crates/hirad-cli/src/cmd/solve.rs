@@ -57,8 +57,8 @@ pub struct Args {
     /// surfaces counted (used without --min-area; default 1e-3, preset `reference` 2.5e-4).
     #[arg(long)]
     pub min_area_rel: Option<f64>,
-    /// Levels of subdivision below the minimum area where a shadow boundary crosses an element
-    /// whose light the oracle would still refine [default: 2].
+    /// Levels of subdivision below the minimum area where a shadow boundary or a close source's
+    /// light crosses an element whose light the oracle would still refine [default: 2].
     #[arg(long)]
     pub shadow_levels: Option<u32>,
     /// Maximum refine+gather iterations [default: 100].

@@ -80,8 +80,9 @@ pub struct SolverConfig {
     /// Relative minimum element area used when `min_area` is `None`.
     pub min_area_rel: f64,
     /// Levels of 4-way subdivision allowed below the minimum element area for a surface
-    /// receiver whose link the oracle would still refine and whose shadow rays disagree: a
-    /// shadow boundary crossing the element.
+    /// receiver whose link the oracle would still refine and whose transfer varies across it
+    /// by more than ε: its shadow rays disagree (a shadow boundary) or its unoccluded kernel
+    /// varies (a source close beside it).
     pub shadow_levels: u32,
     /// Shadow rays per link (stratified, jittered).
     pub shadow_rays: u32,

@@ -514,20 +514,9 @@ impl<'a> KernelCtx<'a> {
     /// Cheap unoccluded estimate `F̃` (no rays): the maximum of the point kernel at the
     /// receiver's centroid and (slightly inset) corners.
     pub fn estimate(&self, i: u32, j: u32) -> f64 {
-        let (ri, sj) = (self.end(i), self.end(j));
-        match ri {
-            End::Surface { v, n, c, .. } => {
-                let mut f = Self::point_kernel(c, Some(n), &sj);
-                // The receiver's point nearest the source: a large receiver beside a small,
-                // bright source (a ceiling over a lamp 8 cm below it) sees it strongly there
-                // and weakly at its centre and corners.
-                let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
-                for p in v.into_iter().chain([near]) {
-                    f = f.max(Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj));
-                }
-                f
-            }
-            End::Cluster { c, .. } => Self::point_kernel(c, None, &sj),
+        match self.end(i) {
+            End::Surface { .. } => self.spread(i, j).1,
+            End::Cluster { c, .. } => Self::point_kernel(c, None, &self.end(j)),
         }
     }
 
@@ -546,6 +535,9 @@ impl<'a> KernelCtx<'a> {
         let End::Surface { v, n, c, .. } = ri else {
             return (0.0, 0.0);
         };
+        // The receiver's point nearest the source: a large receiver beside a small, bright
+        // source (a ceiling over a lamp 8 cm below it) sees it strongly there and weakly at its
+        // centre and corners.
         let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
         let mut lo = Self::point_kernel(c, Some(n), &sj);
         let mut hi = lo;

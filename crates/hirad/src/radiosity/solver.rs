@@ -686,7 +686,7 @@ impl<'a> Solver<'a> {
                     self.el.b[sj as usize],
                     r.rho.as_dvec3(),
                 );
-            let ev = match eval {
+            let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
                     let ev = ctx.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
@@ -702,18 +702,19 @@ impl<'a> Solver<'a> {
             // splitting on the rays' outcome would bias the kept links (those whose rays all
             // missed the source would stay, those that saw it would be drawn again), so a kept
             // link that could have split takes a kernel from independent rays.
-            let mut ev = ev;
             if unresolved && r.kind == Kind::Surface {
                 if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
-                    let (fmin, fmax) = ctx.spread(ri, sj);
-                    let varies = oracle::wants_refine(
-                        Oracle::Error,
-                        self.eps,
-                        fmax - fmin,
-                        self.el.b[sj as usize],
-                        r.rho.as_dvec3(),
-                    );
-                    if ev.mixed || varies {
+                    let varies = || {
+                        let (fmin, fmax) = ctx.spread(ri, sj);
+                        oracle::wants_refine(
+                            Oracle::Error,
+                            self.eps,
+                            fmax - fmin,
+                            self.el.b[sj as usize],
+                            r.rho.as_dvec3(),
+                        )
+                    };
+                    if ev.mixed || varies() {
                         return (a, *l, rays, None);
                     }
                     let fresh = KernelCtx {
