@@ -23,19 +23,22 @@
 //!         links       per link: power delivered against Monte Carlo between the link's ends
 //!                     (exact visibility), by link class (surface/cluster ends) and by centre
 //!                     distance over the larger end's diameter
-//!   --two-sided  --preset P  --clustering S  --visibility V  --samples N (per object; per
-//!   link N/100, at least 16)  --object NAME (links: only links into that object)
+//!   --two-sided  --preset P  --clustering S  --visibility V  --refine O  --samples N (per object; per
+//!   link N/100, at least 16)  --object NAME (links, irradiance, self: only that object)
 //!   --source-mean (links: Monte Carlo with the source element's mean radiosity, as the link
 //!   transfers it, instead of that of the leaf each sample lands on)
 //!   --rays N  --eps-rel X  --min-area-rel X  --shadow-levels N  override the preset's solver settings;
 //!   --iters N stops the solver after N iterations (1: direct light only)
-//!   --depth N (image: the path tracer's bounces, 1: direct light only)
+//!   --depth N (image: the path tracer's bounces, 1: direct light only; irradiance: bounces
+//!   after the receiver's hit, 0: direct light only, N matches --iters N+1)
 //!   --fov DEGREES (image: the camera's vertical field of view)
 //!   objlinks: every link into a surface element of --object, power delivered against brute
 //!   force (as `leaf`, N/100 points per link), summed by source class and by source object
 //!   --leaf ID (leaf: every link into the leaf and its surface ancestors, with the irradiance
 //!   it delivers against brute force over the link's receiver from the source's leaves)
 //!   --rows N (leaves: how many leaves to list, largest difference first; 30)
+//!   leaves with --depth N: against the path tracer's irradiance (direct light as above plus
+//!   one path of at most N bounces per point) instead of direct light only
 //! ```
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -43,7 +46,7 @@ use hirad::progress::NoProgress;
 use hirad::radiosity::element::{facing_weight, Element, Elements, Kind};
 use hirad::radiosity::formfactor::{point_to_polygon, sample_triangle, sample_triangle_above};
 use hirad::radiosity::overlap::Covers;
-use hirad::radiosity::{solve, Solution, SolverConfig, VisibilityMode};
+use hirad::radiosity::{solve, Oracle, Solution, SolverConfig, VisibilityMode};
 use hirad::ray::RayCaster;
 use hirad::render::{PathTracer, ReferenceOptions};
 use hirad::rng::SplitMix64;
@@ -61,6 +64,7 @@ struct Opts {
     preset: String,
     clustering: String,
     visibility: Option<String>,
+    refine: Option<String>,
     samples: usize,
     object: Option<String>,
     source_mean: bool,
@@ -98,6 +102,7 @@ fn parse() -> Opts {
         leaf: None,
         fov: None,
         shadow_levels: None,
+        refine: None,
     };
     while let Some(x) = a.next() {
         let mut val = || a.next().unwrap_or_else(|| panic!("{x} needs a value"));
@@ -106,6 +111,7 @@ fn parse() -> Opts {
             "--preset" => o.preset = val(),
             "--clustering" => o.clustering = val(),
             "--visibility" => o.visibility = Some(val()),
+            "--refine" => o.refine = Some(val()),
             "--samples" => o.samples = val().parse().expect("--samples N"),
             "--object" => o.object = Some(val()),
             "--source-mean" => o.source_mean = true,
@@ -290,12 +296,16 @@ fn per_object(
     scene: &Scene,
     sol: &Solution,
     covers: &Covers,
-    two_sided: bool,
+    o: &Opts,
     estimate: impl Fn(usize, bool, &ByArea) -> Estimate + Sync,
 ) -> Vec<Row> {
+    let (two_sided, only) = (o.two_sided, o.object.as_deref());
     let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
     for t in 0..scene.num_triangles() {
-        by[scene.tri_object[t] as usize].push(t as u32);
+        let o = scene.tri_object[t] as usize;
+        if only.is_none_or(|n| scene.objects[o] == n) {
+            by[o].push(t as u32);
+        }
     }
     let sides: &[bool] = if two_sided { &[false, true] } else { &[false] };
     let mut rows = Vec::new();
@@ -376,10 +386,13 @@ fn print_rows(scene: &Scene, mut rows: Vec<Row>, what: &str) {
 
 /// Path-traced irradiance at random points of each object (cached per scene and seed).
 fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
-    let ropts = ReferenceOptions {
+    let mut ropts = ReferenceOptions {
         two_sided: o.two_sided,
         ..Default::default()
     };
+    if let Some(d) = o.depth {
+        ropts.max_depth = d;
+    }
     let pt = PathTracer::new(scene, caster, &ropts);
     let ems = ByArea::new(scene.emitters(), |t| scene.areas[t as usize] as f64);
     let cache = std::env::temp_dir().join("hirad-audit");
@@ -387,10 +400,12 @@ fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
     let key = o.scene.replace(['/', '.'], "_");
     let m = o.samples;
     let covers = Covers::build(scene, tree, o.two_sided);
-    let rows = per_object(scene, sol, &covers, o.two_sided, |obj, back, tris| {
+    let rows = per_object(scene, sol, &covers, o, |obj, back, tris| {
         let file = cache.join(format!(
-            "{key}_{}_{obj}_{}_{m}_open",
-            o.two_sided, back as u8
+            "{key}_{}_{obj}_{}_{m}_open{}",
+            o.two_sided,
+            back as u8,
+            o.depth.map_or(String::new(), |d| format!("_d{d}"))
         ));
         if let Some(v) = std::fs::read_to_string(&file).ok().and_then(|c| {
             let v: Vec<f64> = c
@@ -468,7 +483,7 @@ fn self_consistency(
     let m = o.samples;
     let leaf_b = |t: u32, back: bool, p: Vec3| el.b[leaf_at(sol, root(sol, t, back), p) as usize];
     let covers = Covers::build(scene, tree, o.two_sided);
-    let rows = per_object(scene, sol, &covers, o.two_sided, |obj, back, tris| {
+    let rows = per_object(scene, sol, &covers, o, |obj, back, tris| {
         let mut rng = SplitMix64::new(obj as u64 * 31 + back as u64);
         let (mut hs, mut hm, mut hd, mut n) = (0.0f64, 0.0f64, 0.0f64, 0usize);
         for _ in 0..m {
@@ -783,6 +798,15 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
     let el = &sol.elements;
     let m = (o.samples / 100).max(16);
     let covers = Covers::build(scene, tree, o.two_sided);
+    // With --depth, indirect light too: one path per point, at most `depth` bounces.
+    let pt = o.depth.map(|d| {
+        let ropts = ReferenceOptions {
+            two_sided: o.two_sided,
+            max_depth: d,
+            ..Default::default()
+        };
+        PathTracer::new(scene, caster, &ropts)
+    });
     let mut ids = Vec::new();
     for t in 0..scene.num_triangles() as u32 {
         if scene.tri_object[t as usize] as usize == obj {
@@ -808,6 +832,17 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
                 sum += direct(scene, caster, &ems, (p, e.normal), &mut rng, |t, _| {
                     scene.material_of(t as usize).emission.element_sum() as f64
                 });
+                if let Some(pt) = &pt {
+                    let d = cosine_dir(e.normal, rng.next_f32(), rng.next_f32());
+                    let org = p + e.normal * OFF;
+                    let mut l = pt.radiance(org, d, &mut rng);
+                    if let Some(h) = caster.closest(org, d, 0.0, f32::INFINITY) {
+                        if scene.normals[h.tri as usize].dot(d) < 0.0 {
+                            l -= scene.material_of(h.tri as usize).emission;
+                        }
+                    }
+                    sum += PI * l.element_sum() as f64;
+                }
             }
             let open_area = e.area as f64 * open as f64 / m as f64;
             (id, open_area, h, sum / open.max(1) as f64)
@@ -952,11 +987,18 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     // Side by side (leaf | path tracer | ratio: red where the leaf is darker, green brighter).
     let (w, h) = (view.width, view.height);
     let mut side = hirad::render::Image::new(3 * w, h, Vec3::ZERO);
+    // The first two panels are exposed to put the path tracer's mean luminance at 0.3.
+    let mean_pt = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| luminance(img_pt.get(x, y)))
+        .sum::<f64>()
+        / (w * h) as f64;
+    let k = (0.3 / mean_pt.max(1e-12)) as f32;
     for y in 0..h {
         for x in 0..w {
             let (l, p) = (img_leaf.get(x, y), img_pt.get(x, y));
-            side.set(x, y, l);
-            side.set(w + x, y, p);
+            side.set(x, y, l * k);
+            side.set(w + x, y, p * k);
             // Ratio of 9×9 box means (the path tracer's pixels are noisy).
             let (mut sl, mut sp) = (0.0, 0.0);
             for yy in y.saturating_sub(4)..(y + 5).min(h) {
@@ -1035,12 +1077,16 @@ fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
     }
     let m = (o.samples / 10).max(64);
     let mut tot = (0.0, 0.0);
+    // Per level of the chain: delivered, brute force over the link's receiver, and brute
+    // force over the leaf itself (what the leaf should get from the same sources).
+    let mut per_level = vec![(0.0f64, 0.0f64, 0.0f64, 0usize); chain.len()];
+    let le = &el.elems[leaf as usize];
     println!("leaf {leaf}: H {:.3}", leaf_irradiance(el, leaf));
     println!(
         "{:>8} {:>9} {:>8} {:>7} {:>9} {:>9} {:>9} {:>9} {:>7}",
         "recv", "r.area", "src", "kind", "s.area", "k", "K·B", "brute", "ratio"
     );
-    for &r in &chain {
+    for (lvl, &r) in chain.iter().enumerate() {
         let re = &el.elems[r as usize];
         for l in sol.links.links.iter().filter(|l| l.recv == r) {
             let se = &el.elems[l.src as usize];
@@ -1049,8 +1095,18 @@ fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
             el.leaves_of(l.src, &mut leaves);
             let mut rng = SplitMix64::for_item(0x001E_AF11, ((r as u64) << 32) | l.src as u64);
             let want = brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
+            let want_leaf = if r == leaf {
+                want
+            } else {
+                brute_irradiance(el, &covers, caster, le, l.src, m, &mut rng)
+            };
             tot.0 += got;
             tot.1 += want;
+            let pl = &mut per_level[lvl];
+            pl.0 += got;
+            pl.1 += want;
+            pl.2 += want_leaf;
+            pl.3 += 1;
             let src_obj = &scene.objects
                 [scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize];
             println!(
@@ -1098,6 +1154,17 @@ fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
         tot.0,
         tot.1,
         tot.0 / tot.1
+    );
+    for (lvl, (&r, pl)) in chain.iter().zip(&per_level).enumerate() {
+        println!(
+            "level {lvl} (element {r}, area {:.4}): {} links, K·B {:.3}, brute over it {:.3}, \
+             brute over the leaf {:.3}",
+            el.elems[r as usize].area, pl.3, pl.0, pl.1, pl.2
+        );
+    }
+    println!(
+        "handed out by clusters, or moved by deposits (H − Σ K·B): {:.3}",
+        leaf_irradiance(el, leaf) - tot.0
     );
 }
 
@@ -1248,6 +1315,9 @@ fn main() {
     }
     if let Some(v) = &o.visibility {
         cfg.visibility = VisibilityMode::parse(v).expect("visibility");
+    }
+    if let Some(r) = &o.refine {
+        cfg.refine = Oracle::parse(r).expect("refine");
     }
     let t = std::time::Instant::now();
     let sol = solve(&scene, &tree, &cfg, &NoProgress).expect("solve");
