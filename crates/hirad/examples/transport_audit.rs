@@ -672,7 +672,7 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                     return None;
                 }
             }
-            let contrib = set.gather(l, &el.b).element_sum();
+            let contrib = set.gather(l, el).element_sum();
             // A cluster receiver hands its irradiance to its surfaces by facing weight.
             let got: f64 = recv
                 .iter()
@@ -1090,7 +1090,7 @@ fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
         let re = &el.elems[r as usize];
         for l in sol.links.links.iter().filter(|l| l.recv == r) {
             let se = &el.elems[l.src as usize];
-            let got = sol.links.gather(l, &el.b).element_sum();
+            let got = sol.links.gather(l, el).element_sum();
             let mut leaves = Vec::new();
             el.leaves_of(l.src, &mut leaves);
             let mut rng = SplitMix64::for_item(0x001E_AF11, ((r as u64) << 32) | l.src as u64);
@@ -1247,7 +1247,7 @@ fn object_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster,
             let se = &el.elems[l.src as usize];
             let mut rng = SplitMix64::for_item(0x0B1, ((l.recv as u64) << 32) | l.src as u64);
             let a = re.area as f64 * el.open[l.recv as usize] as f64;
-            let got = a * sol.links.gather(l, &el.b).element_sum();
+            let got = a * sol.links.gather(l, el).element_sum();
             let want = a * brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
             let mut leaves = Vec::new();
             el.leaves_of(l.src, &mut leaves);

@@ -3,7 +3,10 @@
 //! source much closer to a receiver than the receiver's size (the near-field kernel). Both are
 //! checked leaf by leaf against brute-force direct light (analytic form factors, visibility
 //! in closed form), so either would fail if the solver averaged the light over too coarse
-//! elements or integrated the kernel too coarsely.
+//! elements or integrated the kernel too coarsely. And weak links that no oracle refines,
+//! whose light must land where their rays see the source ([`Deposit`]).
+//!
+//! [`Deposit`]: hirad::radiosity::link::Deposit
 
 use glam::{DVec3, Vec3};
 use hirad::progress::NoProgress;
@@ -223,4 +226,103 @@ fn perpendicular_squares_at_the_minimum_area() {
             "min area {min_area}: F = {f:.5}"
         );
     }
+}
+
+#[test]
+fn weak_links_land_where_their_rays_see_the_source() {
+    // Floor 1 × 1 (grey); a black plate 2 cm above it hides x < 0.5. A dim ceiling (green,
+    // 16 quads, 0.9 × 0.9 at z = 1) whose every link is far below ε, so its links stay on the
+    // floor's two triangles; a bright lamp beside it (red) refines the floor to its minimum
+    // area. Spread evenly, the dim light would reach the hidden half as much as the open one
+    // (a triangle 75% hidden would give its open part a quarter of its light); deposited
+    // where the rays saw the ceiling, the open half gets the brute-force value and the hidden
+    // half almost nothing (spread evenly: the open half 0.63 of brute force, the hidden half
+    // 0.58 of the open one). Midpoint subdivision puts a cell edge on x = 0.5.
+    let g = 0.1f32;
+    let mut mats = materials();
+    mats.push(Material {
+        name: "dim".into(),
+        rho: Vec3::ZERO,
+        emission: Vec3::new(0.0, g, 0.0),
+    });
+    mats.push(Material {
+        name: "red lamp".into(),
+        rho: Vec3::ZERO,
+        emission: Vec3::new(10.0, 0.0, 0.0),
+    });
+    let (dim, red) = (3, 4);
+    let mut quads = vec![
+        rect(Vec3::ZERO, Vec3::X, Vec3::Y, GREY, 0),
+        // Facing the floor: the floor under it is open (dark), not inside a solid.
+        rect(
+            Vec3::new(-0.5, -0.5, 0.02),
+            Vec3::Y * 2.0,
+            Vec3::X,
+            BLACK,
+            1,
+        ),
+        rect(
+            Vec3::new(1.2, 0.4, 1.0),
+            Vec3::Y * 0.2,
+            Vec3::X * 0.2,
+            red,
+            2,
+        ),
+    ];
+    for i in 0..4 {
+        for j in 0..4 {
+            let o = Vec3::new(0.05 + 0.225 * i as f32, 0.05 + 0.225 * j as f32, 1.0);
+            quads.push(rect(o, Vec3::Y * 0.225, Vec3::X * 0.225, dim, 3));
+        }
+    }
+    let scene = quads_scene(&quads, mats);
+    let tree = tree_by_object(&scene);
+    let cfg = SolverConfig {
+        eps: Some(0.01),
+        min_area: Some(0.5 / 64.0),
+        shadow_levels: 0,
+        ..SolverConfig::default()
+    };
+    let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+    let ceiling = [
+        DVec3::new(0.05, 0.05, 1.0),
+        DVec3::new(0.05, 0.95, 1.0),
+        DVec3::new(0.95, 0.95, 1.0),
+        DVec3::new(0.95, 0.05, 1.0),
+    ];
+    // The segment x → y passes the plate's plane z = 0.02 at x < 0.5: blocked.
+    let vis = |x: DVec3, y: DVec3| {
+        let t = (0.02 - x.z) / (y.z - x.z);
+        x.x + (y.x - x.x) * t >= 0.5
+    };
+    let el = &sol.elements;
+    let (mut open, mut open_want, mut hidden, mut leaves) = (0.0, 0.0, 0.0, 0);
+    for l in sol.leaves() {
+        let e = &el.elems[l as usize];
+        if e.back || scene.tri_object[e.tri as usize] != 0 {
+            continue;
+        }
+        leaves += 1;
+        let a = e.area as f64;
+        let h = el.b[l as usize].y / 0.5;
+        if e.centroid.x > 0.5 {
+            open += a * h;
+            open_want +=
+                a * g as f64 * brute(&e.verts, Vec3::Z, &ceiling, -DVec3::Z, 4, Some(&vis));
+        } else {
+            hidden += a * h;
+        }
+    }
+    assert_eq!(
+        leaves, 128,
+        "the lamp refines the floor to its minimum area"
+    );
+    assert!(
+        (open / open_want - 1.0).abs() < 0.1,
+        "open half: Σ A·H {open:.5}, brute force {open_want:.5}"
+    );
+    assert!(
+        hidden < 0.1 * open,
+        "hidden half: Σ A·H {hidden:.5} against {open:.5} on the open half"
+    );
 }

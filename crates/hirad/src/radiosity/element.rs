@@ -358,36 +358,18 @@ impl Elements {
     ///
     /// [`subdivide`]: Self::subdivide
     pub fn leaf_at(&self, id: u32, p: Vec3) -> u32 {
-        let e = &self.elems[id as usize];
-        let [a, b, c] = e.verts.map(|v| v.as_dvec3());
-        let (e1, e2, q) = (b - a, c - a, p.as_dvec3() - a);
-        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-        let (q1, q2) = (q.dot(e1), q.dot(e2));
-        let den = d11 * d22 - d12 * d12;
-        if den <= 0.0 {
+        let Some(mut uvw) = barycentric(&self.elems[id as usize].verts, p) else {
             return id;
-        }
-        let mut v = (d22 * q1 - d12 * q2) / den;
-        let mut w = (d11 * q2 - d12 * q1) / den;
-        let mut u = 1.0 - v - w;
+        };
         let mut id = id;
         loop {
             let e = &self.elems[id as usize];
             if e.num_children == 0 || e.kind != Kind::Surface {
                 return id;
             }
-            // Children [a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca].
-            let (k, nu, nv, nw) = if u >= 0.5 {
-                (0, 2.0 * u - 1.0, 2.0 * v, 2.0 * w)
-            } else if v >= 0.5 {
-                (1, 2.0 * u, 2.0 * v - 1.0, 2.0 * w)
-            } else if w >= 0.5 {
-                (2, 2.0 * u, 2.0 * v, 2.0 * w - 1.0)
-            } else {
-                (3, 1.0 - 2.0 * w, 1.0 - 2.0 * u, 1.0 - 2.0 * v)
-            };
+            let (k, next) = child_step(uvw);
             id = e.first_child + k;
-            (u, v, w) = (nu, nv, nw);
+            uvw = next;
         }
     }
 
@@ -519,4 +501,50 @@ impl Iterator for ChildIter<'_> {
             ChildIter::Range(r) => r.next(),
         }
     }
+}
+
+/// Barycentric coordinates of `p` (a point of the triangle's plane) in triangle `v`; `None`
+/// for a degenerate triangle.
+fn barycentric(v: &[Vec3; 3], p: Vec3) -> Option<(f64, f64, f64)> {
+    let [a, b, c] = v.map(|v| v.as_dvec3());
+    let (e1, e2, q) = (b - a, c - a, p.as_dvec3() - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (q1, q2) = (q.dot(e1), q.dot(e2));
+    let den = d11 * d22 - d12 * d12;
+    if den <= 0.0 {
+        return None;
+    }
+    let v = (d22 * q1 - d12 * q2) / den;
+    let w = (d11 * q2 - d12 * q1) / den;
+    Some((1.0 - v - w, v, w))
+}
+
+/// The child of the midpoint subdivision ([`Elements::subdivide`]: children [a, ab, ca],
+/// [ab, b, bc], [ca, bc, c], [ab, bc, ca]) that holds the point with barycentric coordinates
+/// `(u, v, w)`, and the point's coordinates in that child.
+fn child_step((u, v, w): (f64, f64, f64)) -> (u32, (f64, f64, f64)) {
+    if u >= 0.5 {
+        (0, (2.0 * u - 1.0, 2.0 * v, 2.0 * w))
+    } else if v >= 0.5 {
+        (1, (2.0 * u, 2.0 * v - 1.0, 2.0 * w))
+    } else if w >= 0.5 {
+        (2, (2.0 * u, 2.0 * v, 2.0 * w - 1.0))
+    } else {
+        (3, (1.0 - 2.0 * w, 1.0 - 2.0 * u, 1.0 - 2.0 * v))
+    }
+}
+
+/// The path of point `p` down `levels` levels of the midpoint subdivision of triangle `v`:
+/// the child index at level `i` in bits `2i..2i+2`.
+pub fn quad_path(v: &[Vec3; 3], p: Vec3, levels: u32) -> u32 {
+    let Some(mut uvw) = barycentric(v, p) else {
+        return 0;
+    };
+    let mut path = 0;
+    for i in 0..levels {
+        let (k, next) = child_step(uvw);
+        path |= k << (2 * i);
+        uvw = next;
+    }
+    path
 }

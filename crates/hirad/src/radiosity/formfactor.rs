@@ -31,7 +31,8 @@
 //! surfaces and leave out only those surfaces (directional) or the whole cluster (isotropic).
 
 use super::config::{ClusterEmission, Reception};
-use super::element::{ClusterOrient, Elements, Kind};
+use super::element::{quad_path, ClusterOrient, Elements, Kind};
+use super::link::Deposit;
 use super::overlap::Covers;
 use super::visibility::Visibility;
 use crate::cluster::ClusterTree;
@@ -255,6 +256,36 @@ pub struct KernelEval {
     /// walls, a lamp behind a wall of the same cluster, a ceiling's bright band right above a
     /// lamp that hangs in front of it).
     pub members: Vec<(u32, f32)>,
+    /// Surface receiver whose rays disagree: where the transfer lands ([`Deposit`]).
+    pub deposit: Deposit,
+    /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
+    pub draw: Deposit,
+}
+
+/// Where a mixed link's transfer lands on a surface receiver (vertices `vr`) and where a
+/// surface source (`vs`) sends it from: up to [`Deposit::POINTS`] of the sample pairs
+/// (receiver point, source point) whose rays were open, drawn evenly among them.
+fn deposit_at(
+    vr: Option<&[Vec3; 3]>,
+    vs: Option<&[Vec3; 3]>,
+    seen: &mut [(Vec3, Vec3)],
+    rng: &mut SplitMix64,
+) -> (Deposit, Deposit) {
+    let c = seen.len().min(Deposit::POINTS);
+    for i in 0..c {
+        let j = i + (rng.next_u64() % (seen.len() - i) as u64) as usize;
+        seen.swap(i, j);
+    }
+    let paths = |v: Option<&[Vec3; 3]>, end: fn(&(Vec3, Vec3)) -> Vec3| -> Deposit {
+        v.map_or(Deposit::default(), |v| {
+            let p: Vec<u32> = seen[..c]
+                .iter()
+                .map(|s| quad_path(v, end(s), Deposit::LEVELS))
+                .collect();
+            Deposit::new(&p)
+        })
+    };
+    (paths(vr, |s| s.0), paths(vs, |s| s.1))
 }
 
 /// Everything needed to evaluate link kernels.
@@ -635,6 +666,8 @@ impl<'a> KernelCtx<'a> {
             };
         }
         let mut n_open = 0usize;
+        // (receiver point, source point) of the samples whose rays were open.
+        let mut seen = Vec::new();
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -751,6 +784,9 @@ impl<'a> KernelCtx<'a> {
             if fx > 0.0 {
                 open |= vis > 0.0;
                 blocked |= vis < 1.0;
+                if vis > 0.0 {
+                    seen.push((x, y));
+                }
             }
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
@@ -786,6 +822,20 @@ impl<'a> KernelCtx<'a> {
         if !fmin.is_finite() {
             fmin = 0.0;
         }
+        let (deposit, draw) = if open && blocked {
+            let vr = match ri {
+                End::Surface { v, .. } => Some(v),
+                _ => None,
+            };
+            // A source read through its leaves takes each sample's own radiosity already.
+            let vs = match sj {
+                End::Surface { v, .. } if !source_leaves => Some(v),
+                _ => None,
+            };
+            deposit_at(vr.as_ref(), vs.as_ref(), &mut seen, &mut rng)
+        } else {
+            Default::default()
+        };
         KernelEval {
             k,
             est,
@@ -794,6 +844,8 @@ impl<'a> KernelCtx<'a> {
             rays,
             mixed: open && blocked,
             members,
+            deposit,
+            draw,
         }
     }
 
@@ -880,6 +932,9 @@ impl<'a> KernelCtx<'a> {
         let mut sv = Vec::with_capacity(n);
         stratified_2d(n, rng, &mut sv);
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
+        // The open rays' ends, each taken to carry an equal share (the grid end drawn in
+        // proportion to the form factor, the other end uniform over its part in front).
+        let mut seen = Vec::new();
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
@@ -894,7 +949,17 @@ impl<'a> KernelCtx<'a> {
             vis_sum += vis;
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
+            if vis > 0.0 {
+                // (receiver point, source point)
+                seen.push(if reciprocal { (y, x) } else { (x, y) });
+            }
         }
+        let mixed = vmin < 1.0 && vmax > 0.0;
+        let (deposit, draw) = if mixed {
+            deposit_at(Some(&vr), Some(&vs), &mut seen, rng)
+        } else {
+            Default::default()
+        };
         let mut fu = acc / n_open.max(1) as f64;
         if reciprocal {
             // The mean over the receiver: F_rs = A_s F_sr / A_r, where F_sr is the mean over
@@ -909,8 +974,10 @@ impl<'a> KernelCtx<'a> {
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,
             rays: n as u64,
-            mixed: vmin < 1.0 && vmax > 0.0,
+            mixed,
             members: Vec::new(),
+            deposit,
+            draw,
         }
     }
 

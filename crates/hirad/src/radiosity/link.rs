@@ -16,6 +16,67 @@ pub struct Link {
     /// First of the link's samples in [`LinkSet::samples`] (directional cluster sources), or
     /// [`NO_SAMPLES`]: the receiver then gathers `k · B_src`.
     pub samples: u32,
+    /// Where below a surface receiver the transfer lands ([`Deposit`]); none: evenly.
+    pub deposit: Deposit,
+    /// Where below a surface source the transfer leaves from ([`Deposit`]): the mean
+    /// radiosity there instead of the source's; none: the source's.
+    pub draw: Deposit,
+}
+
+/// Where a link's transfer lands below its surface receiver, and leaves from below its
+/// surface source, when some of its shadow rays are open and some are not: in equal shares
+/// at the ends of the open rays, as paths down the midpoint subdivision, instead of evenly
+/// over the receiver and with the source's mean radiosity. Over the many weak links a
+/// receiver gathers, this keeps the part of a wall that the room sees from sharing its light
+/// with the part hidden behind furniture pressed close to it, which no single link's oracle
+/// would refine; on the source side, the light of the part that sees the receiver is what
+/// goes there (a mean over the hidden part too would lose the light the deposits put where
+/// it is seen).
+///
+/// Code: bits 0..2 the depth (levels below the receiver; 0: no deposit), bits 2..5 the
+/// number of points (1..=4), bits 8 + 6i.. the path of point i (2 bits per level).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Deposit(pub u32);
+
+impl Deposit {
+    /// Levels a path records.
+    pub const LEVELS: u32 = 3;
+    /// Most points a deposit records.
+    pub const POINTS: usize = 4;
+
+    /// A deposit at the points with these paths (at most [`Self::POINTS`], each
+    /// [`Self::LEVELS`] deep); none for no path.
+    pub fn new(paths: &[u32]) -> Deposit {
+        let c = paths.len().min(Self::POINTS);
+        if c == 0 {
+            return Deposit(0);
+        }
+        let mut code = Self::LEVELS | (c as u32) << 2;
+        for (i, p) in paths[..c].iter().enumerate() {
+            code |= (p & 0x3f) << (8 + 6 * i);
+        }
+        Deposit(code)
+    }
+
+    /// Levels below the receiver the paths are followed (0: the transfer is spread evenly).
+    pub fn depth(self) -> u32 {
+        self.0 & 3
+    }
+
+    /// The same deposit followed at most `d` levels.
+    pub fn truncated(self, d: u32) -> Deposit {
+        Deposit(self.0 & !3 | d.min(self.depth()))
+    }
+
+    /// Number of points.
+    pub fn points(self) -> usize {
+        ((self.0 >> 2) & 7) as usize
+    }
+
+    /// Path of point `i`.
+    pub fn path(self, i: usize) -> u32 {
+        (self.0 >> (8 + 6 * i)) & 0x3f
+    }
 }
 
 /// [`Link::samples`] of a link that gathers `k · B_src`.
@@ -37,6 +98,8 @@ impl Link {
             k: f32::NAN,
             est: f32::NAN,
             samples: NO_SAMPLES,
+            deposit: Deposit(0),
+            draw: Deposit(0),
         }
     }
 
@@ -85,11 +148,29 @@ pub struct LinkSet {
 }
 
 impl LinkSet {
-    /// Irradiance per unit of the radiosities `b` that link `l` gathers.
+    /// Irradiance that link `l` gathers from the radiosities of `el`.
     #[inline]
-    pub fn gather(&self, l: &Link, b: &[glam::DVec3]) -> glam::DVec3 {
+    pub fn gather(&self, l: &Link, el: &Elements) -> glam::DVec3 {
+        let b = &el.b;
         if l.samples == NO_SAMPLES {
-            return b[l.src as usize] * l.k as f64;
+            let d = l.draw;
+            if d.depth() == 0 {
+                return b[l.src as usize] * l.k as f64;
+            }
+            let mut sum = glam::DVec3::ZERO;
+            for i in 0..d.points() {
+                let (mut id, mut p) = (l.src, d.path(i));
+                for _ in 0..d.depth() {
+                    let e = &el.elems[id as usize];
+                    if e.num_children == 0 || e.kind != Kind::Surface {
+                        break;
+                    }
+                    id = e.first_child + (p & 3);
+                    p >>= 2;
+                }
+                sum += b[id as usize];
+            }
+            return sum * (l.k as f64 / d.points() as f64);
         }
         let s = l.samples as usize;
         self.samples[s..s + self.per_link as usize]

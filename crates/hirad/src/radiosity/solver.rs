@@ -24,6 +24,10 @@
 //! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
 //! samples land on.
 //!
+//! Deposits: a link whose shadow rays disagree hands its transfer to the parts of a surface
+//! receiver where its rays saw the source ([`Deposit`]), not evenly over the receiver, so
+//! that the many weak links no oracle refines do not light what furniture hides.
+//!
 //! Sun and sky: the sun's direct irradiance on each surface element is `E_sun·max(0, n·s)`
 //! times the fraction of `shadow_rays` jittered points from which a ray towards the sun escapes;
 //! the sky (uniform radiance `L_sky` over the directions above the horizon of the up axis) is
@@ -34,7 +38,7 @@
 use super::config::{ClusterEmission, Oracle, Reception, SolverConfig};
 use super::element::{facing_weight, Elements, Kind};
 use super::formfactor::{sample_triangle, KernelCtx};
-use super::link::{Link, LinkKind, LinkSet, Sample, NO_SAMPLES};
+use super::link::{Deposit, Link, LinkKind, LinkSet, Sample, NO_SAMPLES};
 use super::oracle::{self, Action};
 use super::overlap::Covers;
 use super::stats::{self, IterStat, SolveStats};
@@ -53,6 +57,10 @@ use std::time::Instant;
 /// than this fraction since the links were last refined, and always once more at
 /// convergence; in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
+
+/// A receiver's deposits ([`Deposit`]) are followed down only as many levels as leave this
+/// many of their points per cell on average; below that a cell's share is mostly noise.
+const DEPOSIT_POINTS_PER_CELL: usize = 4;
 
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
 /// cast, and the samples of a kept link from a directional cluster.
@@ -140,6 +148,8 @@ struct Gathered {
     k_sum: f64,
     /// Cluster receivers: one entry per link.
     entries: Vec<Entry>,
+    /// Surface receivers: transfers that land where their rays saw the source.
+    deposits: Vec<(Deposit, DVec3)>,
 }
 
 /// What a cluster received through one link, handed to its surfaces in push-pull.
@@ -197,6 +207,9 @@ struct Solver<'a> {
     /// clusters' entries).
     pp_order: Vec<u32>,
     entries: Vec<Entry>,
+    /// Deposits of the surface receivers' links, and per element its range in them.
+    deposits: Vec<(Deposit, DVec3)>,
+    dep_ranges: Vec<(u32, u32)>,
     /// Per element: irradiance (channel sum) gathered from cluster sources.
     h_cluster: Vec<f64>,
     /// Per element: sum of the kernels of its own links (surface receivers).
@@ -303,6 +316,8 @@ impl<'a> Solver<'a> {
             cl_ranges: vec![(0, 0); nc],
             pp_order,
             entries: Vec::new(),
+            deposits: Vec::new(),
+            dep_ranges: Vec::new(),
             root_irr: Vec::new(),
             has_sun_sky,
             power_bound: f64::INFINITY,
@@ -439,6 +454,8 @@ impl<'a> Solver<'a> {
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * std::mem::size_of::<Link>()
             + self.entries.capacity() * std::mem::size_of::<Entry>()
+            + self.deposits.capacity() * std::mem::size_of::<(Deposit, DVec3)>()
+            + self.dep_ranges.capacity() * 8
             + self.pp_order.capacity() * 4) as u64
     }
 
@@ -726,6 +743,8 @@ impl<'a> Solver<'a> {
                 }
             }
             link.k = ev.k as f32;
+            link.deposit = ev.deposit;
+            link.draw = ev.draw;
             if !ev.members.is_empty() {
                 members = Some(ev.members.into_boxed_slice());
             }
@@ -772,7 +791,7 @@ impl<'a> Solver<'a> {
                     ..Default::default()
                 };
                 for l in &links[a as usize..b as usize] {
-                    let contrib = set.gather(l, &el.b);
+                    let contrib = set.gather(l, el);
                     let se = &el.elems[l.src as usize];
                     if re.kind == Kind::Cluster {
                         let d = (se.centroid - re.centroid).normalize_or_zero();
@@ -784,11 +803,32 @@ impl<'a> Solver<'a> {
                             k: l.k,
                         });
                     } else {
-                        g.h += contrib;
+                        if l.deposit.depth() > 0 {
+                            g.deposits.push((l.deposit, contrib));
+                        } else {
+                            g.h += contrib;
+                        }
                         g.k_sum += l.k as f64;
                         if se.kind == Kind::Cluster {
                             g.h_cluster += contrib.element_sum();
                         }
+                    }
+                }
+                // Deposits are followed only as deep as the receiver's points give each cell
+                // at least `DEPOSIT_POINTS_PER_CELL` of them; none deep: spread evenly.
+                let pts: usize = g.deposits.iter().map(|d| d.0.points()).sum();
+                let mut depth = 0;
+                while depth < Deposit::LEVELS && pts >= DEPOSIT_POINTS_PER_CELL << (2 * (depth + 1))
+                {
+                    depth += 1;
+                }
+                if depth == 0 {
+                    for (_, c) in g.deposits.drain(..) {
+                        g.h += c;
+                    }
+                } else {
+                    for d in &mut g.deposits {
+                        d.0 = d.0.truncated(depth);
                     }
                 }
                 g
@@ -807,8 +847,16 @@ impl<'a> Solver<'a> {
         for r in self.cl_ranges.iter_mut() {
             *r = (0, 0);
         }
+        self.deposits.clear();
+        self.dep_ranges.clear();
+        self.dep_ranges.resize(self.el.len(), (0, 0));
         for g in res {
             let id = g.recv as usize;
+            if !g.deposits.is_empty() {
+                let s = self.deposits.len() as u32;
+                self.deposits.extend_from_slice(&g.deposits);
+                self.dep_ranges[id] = (s, self.deposits.len() as u32);
+            }
             if self.el.elems[id].kind == Kind::Cluster {
                 let s = self.entries.len() as u32;
                 self.entries.extend_from_slice(&g.entries);
@@ -835,6 +883,7 @@ impl<'a> Solver<'a> {
         let reception = self.cfg.cluster_receive;
         let covers = &self.covers;
         let emission = self.cfg.cluster_emission;
+        let deps = (&self.deposits[..], &self.dep_ranges[..]);
         // Irradiance handed down by the clusters above each root surface, computed in cluster
         // tree order (`pp_order`) so that the entries of the clusters that consecutive surfaces
         // share stay in cache.
@@ -884,7 +933,15 @@ impl<'a> Solver<'a> {
                 let open = area * el.open[r as usize] as f64;
                 out.gathered_cluster = open * hc.element_sum();
                 out.gathered = out.gathered_cluster;
-                let (b, open) = push_rec(el, covers, (h_cluster, k_sum), r, (hc, kc), &mut out);
+                let (b, open) = push_rec(
+                    el,
+                    covers,
+                    (h_cluster, k_sum),
+                    deps,
+                    r,
+                    (hc, kc, &[]),
+                    &mut out,
+                );
                 out.updates.push((r, b, (open / area.max(1e-300)) as f32));
                 out.incident /= area;
                 out
@@ -1085,24 +1142,34 @@ fn push_rec(
     el: &Elements,
     covers: &Covers,
     (h_cluster, k_sum): (&[f64], &[f64]),
+    deps: Deposits,
     id: u32,
-    down: (DVec3, f64),
+    down: (DVec3, f64, &[Carried]),
     out: &mut RootResult,
 ) -> (DVec3, f64) {
     let e = &el.elems[id as usize];
-    let area = e.area as f64;
     let own = el.h[id as usize];
-    let known = el.open[id as usize];
-    let open_here = area
-        * if known.is_nan() {
-            covers.open_fraction(e.tri, &e.verts)
-        } else {
-            known as f64
-        };
+    let open_here = open_area(el, covers, id);
     out.gathered += open_here * own.element_sum();
     out.gathered_cluster += open_here * h_cluster[id as usize];
-    let h = down.0 + own;
+    let mut h = down.0 + own;
     let k = down.1 + k_sum[id as usize];
+    // Deposits: this element's own, split into their points, and those carried from above;
+    // a point with no level left spreads evenly from here.
+    let mut carried: Vec<Carried> = Vec::new();
+    let (a, b) = deps.1.get(id as usize).copied().unwrap_or((0, 0));
+    for &(d, c) in &deps.0[a as usize..b as usize] {
+        out.gathered += open_here * c.element_sum();
+        let share = c / d.points() as f64;
+        carried.extend((0..d.points()).map(|i| (d.path(i), d.depth(), share)));
+    }
+    carried.extend_from_slice(down.2);
+    carried.retain(|&(_, levels, s)| {
+        if levels == 0 || e.num_children == 0 {
+            h += s;
+        }
+        levels > 0 && e.num_children > 0
+    });
     if e.num_children == 0 {
         out.gain_above_one += (e.rho.max_element() as f64 * k > 1.0) as u64;
         out.k_stats[0] += open_here;
@@ -1117,9 +1184,33 @@ fn push_rec(
         out.direct += open_here * d.element_sum();
         return (e.emission.as_dvec3() + rho * inc, open_here);
     }
+    // Each child takes the points in it, at the density of its own open area.
+    let mut per_child: [Vec<Carried>; 4] = Default::default();
+    if !carried.is_empty() {
+        for (j, c) in el.children(id).enumerate() {
+            let oc = open_area(el, covers, c);
+            for &(p, levels, s) in &carried {
+                if (p & 3) as usize == j {
+                    if oc > 0.0 {
+                        per_child[j].push((p >> 2, levels - 1, s * open_here / oc));
+                    } else {
+                        h += s;
+                    }
+                }
+            }
+        }
+    }
     let (mut acc, mut acc_plain, mut open) = (DVec3::ZERO, DVec3::ZERO, 0.0f64);
-    for c in el.children(id) {
-        let (b, o) = push_rec(el, covers, (h_cluster, k_sum), c, (h, k), out);
+    for (j, c) in el.children(id).enumerate() {
+        let (b, o) = push_rec(
+            el,
+            covers,
+            (h_cluster, k_sum),
+            deps,
+            c,
+            (h, k, &per_child[j]),
+            out,
+        );
         let ca = el.elems[c as usize].area as f64;
         out.updates.push((c, b, (o / ca.max(1e-300)) as f32));
         acc += b * o;
@@ -1132,4 +1223,23 @@ fn push_rec(
         acc_plain / e.num_children as f64
     };
     (b, open)
+}
+
+/// A deposit's point on its way down: remaining path, levels left, irradiance it adds at
+/// the current element.
+type Carried = (u32, u32, DVec3);
+
+/// The deposits and each element's range in them.
+type Deposits<'a> = (&'a [(Deposit, DVec3)], &'a [(u32, u32)]);
+
+/// Open area of surface element `id` (its open share once push-pull has computed it).
+fn open_area(el: &Elements, covers: &Covers, id: u32) -> f64 {
+    let e = &el.elems[id as usize];
+    let known = el.open[id as usize];
+    e.area as f64
+        * if known.is_nan() {
+            covers.open_fraction(e.tri, &e.verts)
+        } else {
+            known as f64
+        }
 }
