@@ -326,3 +326,86 @@ fn weak_links_land_where_their_rays_see_the_source() {
         "hidden half: Σ A·H {hidden:.5} against {open:.5} on the open half"
     );
 }
+
+#[test]
+fn a_board_hung_a_millimetre_off_the_floor_closes_the_gap_under_it() {
+    // Floor 1 × 1 (grey, facing up) under a 0.2 × 0.2 lamp at x 0.1..0.3, height 1; a black
+    // board 1 cm thick hangs 1 mm above it over x > 0.4, which no cell edge of the midpoint
+    // subdivision follows. The gap lets in almost no light, so a leaf straddling the board's
+    // edge is lit as its open part is (brute force over the points left of x = 0.4), not at
+    // the mean with the dark part under the board: spread over the whole leaf, a leaf half
+    // under the board would read half its open part's light.
+    for two_sided in [false, true] {
+        let lamp = [
+            Vec3::new(0.1, 0.4, 1.0),
+            Vec3::new(0.1, 0.6, 1.0),
+            Vec3::new(0.3, 0.6, 1.0),
+            Vec3::new(0.3, 0.4, 1.0),
+        ];
+        let quads = vec![
+            rect(Vec3::ZERO, Vec3::X, Vec3::Y, GREY, 0),
+            rect(
+                Vec3::new(0.4, -0.2, 0.001),
+                Vec3::Y * 1.4,
+                Vec3::X * 0.8,
+                BLACK,
+                1,
+            ),
+            rect(
+                Vec3::new(0.4, -0.2, 0.011),
+                Vec3::X * 0.8,
+                Vec3::Y * 1.4,
+                BLACK,
+                1,
+            ),
+            Quad {
+                p: lamp,
+                mat: LAMP,
+                group: 2,
+            },
+        ];
+        let scene = quads_scene(&quads, materials());
+        let tree = tree_by_object(&scene);
+        let cfg = SolverConfig {
+            min_area: Some(1.0 / 32.0),
+            two_sided,
+            shadow_levels: 0,
+            ..SolverConfig::default()
+        };
+        let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+        let lamp = lamp.map(|p| p.as_dvec3());
+        let mut straddling = 0;
+        for (v, _, h) in leaves(&sol, &scene, 0) {
+            let (lo, hi) = v.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |a, p| {
+                (a.0.min(p.x), a.1.max(p.x))
+            });
+            if !(lo < 0.38 && hi > 0.42) {
+                continue;
+            }
+            straddling += 1;
+            // Brute force over the leaf's open points (a 32 × 32 grid).
+            let (mut sum, mut open) = (0.0, 0);
+            for i in 0..32 {
+                for j in 0..32 {
+                    let (u1, u2) = ((i as f32 + 0.5) / 32.0, (j as f32 + 0.5) / 32.0);
+                    let s = u1.sqrt();
+                    let x = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2);
+                    if x.x < 0.4 {
+                        open += 1;
+                        sum += std::f64::consts::PI
+                            * point_to_polygon(x.as_dvec3(), DVec3::Z, &lamp, -DVec3::Z);
+                    }
+                }
+            }
+            let want = sum / open as f64;
+            assert!(
+                (h / want - 1.0).abs() < 0.1,
+                "two-sided {two_sided}: leaf {v:?} H {h:.5}, brute force over its open part {want:.5}"
+            );
+        }
+        assert!(
+            straddling >= 2,
+            "{straddling} leaves straddle the board's edge"
+        );
+    }
+}

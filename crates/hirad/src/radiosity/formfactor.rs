@@ -764,7 +764,7 @@ impl<'a> KernelCtx<'a> {
             }
             // A covered receiver point is not part of the receiver: the kernel is the mean
             // over its open points. A covered source point emits nothing.
-            if self.covered(ex, x) {
+            if self.covered(ex, nx.unwrap_or(Vec3::ZERO), x) {
                 if per_member {
                     members.push((NO_MEMBER, 0.0));
                 }
@@ -773,7 +773,7 @@ impl<'a> KernelCtx<'a> {
             n_open += 1;
             let vis = if fx > 0.0 || bounds {
                 rays += 1;
-                if self.covered(ey, y) {
+                if self.covered(ey, ny, y) {
                     0.0
                 } else {
                     self.segment(x, ex, y, ey)
@@ -912,7 +912,7 @@ impl<'a> KernelCtx<'a> {
         let mut n_open = 0usize;
         for &x in &xs {
             // Covered points are not part of their end (zero weight in the cdf below).
-            let f = if self.covered(ge, x) {
+            let f = if self.covered(ge, gn, x) {
                 0.0
             } else {
                 n_open += 1;
@@ -941,7 +941,7 @@ impl<'a> KernelCtx<'a> {
             let x = xs[cdf.partition_point(|&c| c <= target).min(m - 1)];
             let y = sample_triangle_above(x, gn, &ov, u[0], u[1])
                 .unwrap_or_else(|| sample_triangle(&ov, u[0], u[1]));
-            let vis = if self.covered(oe, y) {
+            let vis = if self.covered(oe, on, y) {
                 0.0
             } else {
                 self.segment(x, ge, y, oe)
@@ -1072,11 +1072,11 @@ impl<'a> KernelCtx<'a> {
         }
     }
 
-    /// Point `p` of a surface end lies under a coplanar triangle that owns it ([`Covers`]).
+    /// Point `p` of a surface end (its side facing `n`) is covered ([`Covers`]).
     #[inline]
-    fn covered(&self, end: Endpoint, p: Vec3) -> bool {
+    fn covered(&self, end: Endpoint, n: Vec3, p: Vec3) -> bool {
         match end {
-            Endpoint::Surface(tri) => self.covers.covered(tri, p),
+            Endpoint::Surface(tri) => self.covers.covered(tri, n, p),
             _ => false,
         }
     }

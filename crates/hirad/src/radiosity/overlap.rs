@@ -1,12 +1,16 @@
 //! Coplanar overlapping faces (a poster on a wall, two walls modelled through each other,
 //! duplicated triangles; with two-sided surfaces also back-to-back ones). A ray meets one of
-//! them where they overlap, but the solver would let both receive and emit there: that region then sends and takes light twice, kernel sums pass 1
-//! and closed cavities with such faces amplify instead of absorbing. Each point of an overlap
-//! therefore belongs to one triangle: an emitter's over a non-emitter's (a lamp panel flush with
-//! a ceiling shines), then that of the smaller object (a detail lies on what carries it, however
-//! finely either is tessellated), then the smaller triangle, then the lower id; the other's
-//! points there are *covered*: the solver's kernels give them no light and take none from them.
-//! Points inside closed solids ([`ShutMasks`]) are covered too.
+//! them where they overlap, but the solver would let both receive and emit there: that region
+//! then sends and takes light twice, kernel sums pass 1 and closed cavities with such faces
+//! amplify instead of absorbing. Each point of an overlap therefore belongs to one triangle: an
+//! emitter's over a non-emitter's (a lamp panel flush with a ceiling shines), then that of the
+//! smaller object (a detail lies on what carries it, however finely either is tessellated),
+//! then the smaller triangle, then the lower id; the other's points there are *covered*: the
+//! solver's kernels give them no light and take none from them. Parallel faces across a gap
+//! too narrow to let light in (a board hung a millimetre off a wall) cover each other's sides
+//! that face the gap: an element straddling the gap's edge is then lit as its open part is,
+//! not at the mean over the dark part too. Points inside closed solids ([`ShutMasks`]) are
+//! covered too.
 
 use super::shut::ShutMasks;
 use crate::cluster::ClusterTree;
@@ -21,6 +25,9 @@ pub struct Covers {
     ids: Vec<u32>,
     /// Per entry of `ids`: the covering triangle in the covered one's plane coordinates.
     shapes: Vec<[Vec2; 3]>,
+    /// Per entry of `ids`: the normal of the covered side (the side facing a closed gap), or
+    /// zero when both sides are covered (coplanar overlaps).
+    sides: Vec<Vec3>,
     /// Per triangle: the coordinate its plane projection drops.
     axis: Vec<u8>,
     /// The parts inside closed solids.
@@ -29,6 +36,11 @@ pub struct Covers {
 
 /// Normals closer than this (|cos| above `1 − PARALLEL`) make two triangles parallel.
 const PARALLEL: f32 = 1e-5;
+
+/// Widest closed gap between parallel faces, relative to the extent of the smaller of their
+/// objects (its box's diagonal): a gap of width h and depth W lets in about (h/W)·ln(W/2h) of
+/// the light on its opening area, under 1% at this ratio.
+const GAP_REL: f32 = 1e-3;
 
 /// Plane distance and overlap tolerance, relative to the larger triangle's longest edge.
 const REL_TOL: f32 = 1e-4;
@@ -39,6 +51,7 @@ impl Covers {
         offsets: Vec::new(),
         ids: Vec::new(),
         shapes: Vec::new(),
+        sides: Vec::new(),
         axis: Vec::new(),
         shut: ShutMasks::EMPTY,
     };
@@ -60,19 +73,32 @@ impl Covers {
                 scene.areas[t],
             )
         };
-        let per: Vec<Vec<u32>> = (0..n)
+        // Each object's extent (its box's diagonal) sets how narrow a gap is closed.
+        let mut boxes =
+            vec![(Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)); object_area.len()];
+        for t in 0..n {
+            let b = &mut boxes[scene.tri_object[t] as usize];
+            for p in scene.tri_vertices(t) {
+                b.0 = b.0.min(p);
+                b.1 = b.1.max(p);
+            }
+        }
+        let extent: Vec<f32> = boxes.iter().map(|b| (b.1 - b.0).length()).collect();
+        let gap = |t: u32| GAP_REL * extent[scene.tri_object[t as usize] as usize];
+        let per: Vec<Vec<(u32, Vec3)>> = (0..n)
             .into_par_iter()
-            .map(|i| covering(scene, tree, i as u32, two_sided, &rank))
+            .map(|i| covering(scene, tree, i as u32, two_sided, &rank, &gap))
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);
-        let (mut ids, mut shapes) = (Vec::new(), Vec::new());
+        let (mut ids, mut shapes, mut sides) = (Vec::new(), Vec::new(), Vec::new());
         let axis: Vec<u8> = scene.normals.iter().map(|&n| drop_axis(n) as u8).collect();
         offsets.push(0);
         for (i, v) in per.into_iter().enumerate() {
-            for j in v {
+            for (j, side) in v {
                 let a = axis[i] as usize;
                 shapes.push(scene.tri_vertices(j as usize).map(|p| project(p, a)));
                 ids.push(j);
+                sides.push(side);
             }
             offsets.push(ids.len() as u32);
         }
@@ -80,6 +106,7 @@ impl Covers {
             offsets,
             ids,
             shapes,
+            sides,
             axis,
             shut: ShutMasks::build(scene, tree, two_sided),
         }
@@ -119,9 +146,9 @@ impl Covers {
         &self.ids[self.range(tri)]
     }
 
-    /// Share of the triangle `v` (a part of input triangle `tri`) that is not covered,
-    /// from 64 stratified points (1 when no part of `tri` is).
-    pub fn open_fraction(&self, tri: u32, v: &[Vec3; 3]) -> f64 {
+    /// Share of the triangle `v` (a part of input triangle `tri`, its side facing `n`) that
+    /// is not covered, from 64 stratified points (1 when no part of `tri` is).
+    pub fn open_fraction(&self, tri: u32, n: Vec3, v: &[Vec3; 3]) -> f64 {
         if self.range(tri).is_empty() && !self.shut.has_mask(tri) {
             return 1.0;
         }
@@ -131,16 +158,16 @@ impl Covers {
                 let (u1, u2) = ((i as f32 + 0.5) / 8.0, (j as f32 + 0.5) / 8.0);
                 let s = u1.sqrt();
                 let p = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2);
-                open += !self.covered(tri, p) as u32;
+                open += !self.covered(tri, n, p) as u32;
             }
         }
         open as f64 / 64.0
     }
 
-    /// True when point `p` of triangle `tri` lies under a triangle that covers it or inside
-    /// a closed solid.
+    /// True when point `p` of triangle `tri`, on its side facing `n`, lies under a triangle
+    /// that covers it or inside a closed solid.
     #[inline]
-    pub fn covered(&self, tri: u32, p: Vec3) -> bool {
+    pub fn covered(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
         if self.shut.shut(tri, p) {
             return true;
         }
@@ -149,20 +176,27 @@ impl Covers {
             return false;
         }
         let q = project(p, self.axis[tri as usize] as usize);
-        self.shapes[r].iter().any(|v| inside(q, v))
+        self.shapes[r.clone()]
+            .iter()
+            .zip(&self.sides[r])
+            .any(|(v, s)| (*s == Vec3::ZERO || s.dot(n) > 0.0) && inside(q, v))
     }
 }
 
-/// The triangles whose overlap with triangle `i` belongs to them (coplanar, facing the same
-/// way unless `two_sided`, overlapping with positive area, of lower `rank` (emitter first,
-/// then object area, then triangle area), or of equal rank with a lower id).
+/// The triangles covering part of triangle `i`, each with the normal of the side of `i` it
+/// covers (zero: both sides). Coplanar triangles (facing the same way unless `two_sided`)
+/// cover `i` on both sides where they overlap it with positive area, when they own the
+/// overlap: lower `rank` (emitter first, then object area, then triangle area), or equal rank
+/// and a lower id. A parallel triangle across a closed gap (at most `gap` of either's object
+/// away, in front of `i` unless `two_sided`) covers the side of `i` that faces it.
 fn covering(
     scene: &Scene,
     tree: &ClusterTree,
     i: u32,
     two_sided: bool,
     rank: &(impl Fn(u32) -> (bool, f64, f32) + Sync),
-) -> Vec<u32> {
+    gap: &(impl Fn(u32) -> f32 + Sync),
+) -> Vec<(u32, Vec3)> {
     let vi = scene.tri_vertices(i as usize);
     let ni = scene.normals[i as usize];
     if scene.areas[i as usize] <= 0.0 {
@@ -176,7 +210,7 @@ fn covering(
             .max((v[0] - v[2]).length())
     };
     let bb = scene.tri_bbox(i as usize);
-    let grow = REL_TOL * edge(&vi);
+    let grow = (REL_TOL * edge(&vi)).max(gap(i));
     let (lo, hi) = (bb.min - Vec3::splat(grow), bb.max + Vec3::splat(grow));
     let mut out = Vec::new();
     let mut stack = vec![0u32];
@@ -188,39 +222,49 @@ fn covering(
         let surf = &tree.surfaces
             [nd.first_surface as usize..(nd.first_surface + nd.num_surfaces) as usize];
         for &j in surf {
-            if j == i {
-                continue;
-            }
-            let owns = match rank(j).partial_cmp(&ri) {
-                Some(std::cmp::Ordering::Less) => true,
-                Some(std::cmp::Ordering::Equal) => j < i,
-                _ => false,
-            };
-            if !owns || scene.areas[j as usize] <= 0.0 {
+            if j == i || scene.areas[j as usize] <= 0.0 {
                 continue;
             }
             let nj = scene.normals[j as usize];
             let c = ni.dot(nj);
-            if c.abs() < 1.0 - PARALLEL || (c < 0.0 && !two_sided) {
+            if c.abs() < 1.0 - PARALLEL {
                 continue;
             }
             let vj = scene.tri_vertices(j as usize);
             let tol = REL_TOL * edge(&vi).max(edge(&vj));
-            if vj.iter().any(|&p| ni.dot(p - vi[0]).abs() > tol) {
-                continue;
-            }
+            let d = vj.map(|p| ni.dot(p - vi[0]));
+            let side = if d.iter().all(|x| x.abs() <= tol) {
+                let owns = match rank(j).partial_cmp(&ri) {
+                    Some(std::cmp::Ordering::Less) => true,
+                    Some(std::cmp::Ordering::Equal) => j < i,
+                    _ => false,
+                };
+                if !owns || (c < 0.0 && !two_sided) {
+                    continue;
+                }
+                Vec3::ZERO
+            } else {
+                let g = gap(i).min(gap(j));
+                if d.iter().all(|&x| x > 0.0 && x <= g) {
+                    ni
+                } else if two_sided && d.iter().all(|&x| x < 0.0 && x >= -g) {
+                    -ni
+                } else {
+                    continue;
+                }
+            };
             let axis = drop_axis(ni);
             if overlap(
                 &vi.map(|p| project(p, axis)),
                 &vj.map(|p| project(p, axis)),
                 tol,
             ) {
-                out.push(j);
+                out.push((j, side));
             }
         }
         stack.extend(nd.children());
     }
-    out.sort_unstable();
+    out.sort_unstable_by_key(|e| e.0);
     out
 }
 

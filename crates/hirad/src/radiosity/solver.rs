@@ -262,7 +262,7 @@ impl<'a> Solver<'a> {
         let covers = Covers::build(scene, tree, cfg.two_sided);
         for id in el.roots() {
             let e = &el.elems[id as usize];
-            el.open[id as usize] = covers.open_fraction(e.tri, &e.verts) as f32;
+            el.open[id as usize] = covers.open_fraction(e.tri, e.normal, &e.verts) as f32;
         }
         let stats = SolveStats {
             scene: scene.name.clone(),
@@ -1044,7 +1044,7 @@ impl<'a> Solver<'a> {
                         for p in &pts {
                             let x = sample_triangle(&e.verts, p[0], p[1]);
                             // Irradiance is the mean over the element's open points.
-                            if covers.covered(e.tri, x) {
+                            if covers.covered(e.tri, e.normal, x) {
                                 continue;
                             }
                             n_open += 1;
@@ -1063,7 +1063,7 @@ impl<'a> Solver<'a> {
                     let (mut open, mut n_open) = (0.0, 0usize);
                     for (d, p) in dirs.iter().zip(&pts) {
                         let x = sample_triangle(&e.verts, p[0], p[1]);
-                        if covers.covered(e.tri, x) {
+                        if covers.covered(e.tri, e.normal, x) {
                             continue;
                         }
                         n_open += 1;
@@ -1238,7 +1238,7 @@ fn open_area(el: &Elements, covers: &Covers, id: u32) -> f64 {
     let known = el.open[id as usize];
     e.area as f64
         * if known.is_nan() {
-            covers.open_fraction(e.tri, &e.verts)
+            covers.open_fraction(e.tri, e.normal, &e.verts)
         } else {
             known as f64
         }
