@@ -323,7 +323,7 @@ fn per_object(
                     sol.elements.leaves_of(root(sol, t, back), &mut leaves);
                     for &id in &leaves {
                         let e = &sol.elements.elems[id as usize];
-                        let a = e.area as f64 * covers.open_fraction(t, &e.verts);
+                        let a = e.area as f64 * covers.open_fraction(t, e.normal, &e.verts);
                         let h = if e.rho.max_element() > 0.0 {
                             leaf_irradiance(&sol.elements, id)
                         } else {
@@ -433,7 +433,7 @@ fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, s
             let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
             // Covered and shut points are not part of the receiver (the solver's H is the
             // mean over open points): they count as the mean, i.e. are left out.
-            if covers.covered(t as u32, p) {
+            if covers.covered(t as u32, n, p) {
                 continue;
             }
             open += 1;
@@ -494,7 +494,7 @@ fn self_consistency(
             }
             let nrm = e.normal;
             let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
-            if covers.covered(t as u32, p) {
+            if covers.covered(t as u32, nrm, p) {
                 continue;
             }
             let lf = leaf_at(sol, root(sol, t as u32, back), p);
@@ -555,7 +555,7 @@ fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &S
                 let t = tris.pick(&mut rng) as usize;
                 let nrm = scene.normals[t];
                 let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
-                let b = if covers.covered(t as u32, p) {
+                let b = if covers.covered(t as u32, nrm, p) {
                     0.0
                 } else {
                     el.b[leaf_at(sol, root(sol, t as u32, false), p) as usize].element_sum()
@@ -825,7 +825,7 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
             let (mut sum, mut open) = (0.0, 0usize);
             for _ in 0..m {
                 let p = sample_triangle(&e.verts, rng.next_f32(), rng.next_f32());
-                if covers.covered(e.tri, p) {
+                if covers.covered(e.tri, e.normal, p) {
                     continue;
                 }
                 open += 1;
@@ -882,6 +882,52 @@ fn leaves(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: 
     }
 }
 
+/// Pixels of one object binned 10 × 8 over the two widest axes of their hit points' box:
+/// leaf / path-traced mean luminance per bin (rows from the top of the second axis).
+fn image_bins(hits: &[(Vec3, f64, f64)]) {
+    let (lo, hi) = hits.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(a, b), h| (a.min(h.0), b.max(h.0)),
+    );
+    let ext = hi - lo;
+    let mut ax = [0usize, 1, 2];
+    ax.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
+    let (u, v) = (ax[0].min(ax[1]), ax[0].max(ax[1]));
+    const NU: usize = 10;
+    const NV: usize = 8;
+    let mut bins = vec![(0u64, 0.0f64, 0.0f64); NU * NV];
+    for &(p, l, t) in hits {
+        let bu = (((p[u] - lo[u]) / ext[u].max(1e-9)) * NU as f32) as usize;
+        let bv = (((p[v] - lo[v]) / ext[v].max(1e-9)) * NV as f32) as usize;
+        let b = &mut bins[bv.min(NV - 1) * NU + bu.min(NU - 1)];
+        b.0 += 1;
+        b.1 += l;
+        b.2 += t;
+    }
+    println!(
+        "pixels of --object by axis {u} ({:.2}..{:.2}, columns) and axis {v} ({:.2}..{:.2}, rows from the top): leaf/path mean luminance, pixels",
+        lo[u], hi[u], lo[v], hi[v]
+    );
+    for r in (0..NV).rev() {
+        let line: Vec<String> = (0..NU)
+            .map(|c| {
+                let b = bins[r * NU + c];
+                if b.0 == 0 {
+                    format!("{:>15}", "-")
+                } else {
+                    format!(
+                        "{:5.1}/{:5.1} {:>3}",
+                        b.1 / b.0 as f64,
+                        b.2 / b.0 as f64,
+                        b.0
+                    )
+                }
+            })
+            .collect();
+        println!("{}", line.join(" "));
+    }
+}
+
 /// Mean luminance of the view drawn three ways, and the visible objects behind the gap.
 fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     use hirad::metrics::luminance;
@@ -917,12 +963,25 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
     // Per object: (pixels, leaf luminance sum, path-traced luminance sum).
     // Per image row: per object (pixels, leaf luminance sum, path-traced luminance sum), and
     // per pixel (leaf radiance, path-traced radiance).
-    type Row = (Vec<(u64, f64, f64)>, Vec<(Vec3, Vec3)>);
+    // With --object: (hit point, leaf luminance, path-traced luminance) of its pixels.
+    type Row = (
+        Vec<(u64, f64, f64)>,
+        Vec<(Vec3, Vec3)>,
+        Vec<(Vec3, f64, f64)>,
+    );
+    let focus = o.object.as_deref().map(|n| {
+        scene
+            .objects
+            .iter()
+            .position(|m| m == n)
+            .expect("no such object")
+    });
     let rows: Vec<Row> = (0..view.height)
         .into_par_iter()
         .map(|y| {
             let mut acc = vec![(0u64, 0.0f64, 0.0f64); scene.objects.len() + 1];
             let mut px = Vec::with_capacity(view.width as usize);
+            let mut hits = Vec::new();
             let mut rng = SplitMix64::for_item(0xA0D1, y as u64);
             for x in 0..view.width {
                 let d = frame.direction(x as f32 + 0.5, y as f32 + 0.5).normalize();
@@ -943,6 +1002,9 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
                             el.b[leaf_at(sol, root(sol, t, back), p) as usize]
                         };
                         px.push((b.as_vec3() / std::f32::consts::PI, ptc));
+                        if focus == Some(scene.tri_object[t as usize] as usize) {
+                            hits.push((p, luminance(b.as_vec3()) / PI, ptl));
+                        }
                         (
                             scene.tri_object[t as usize] as usize,
                             luminance(b.as_vec3()) / PI,
@@ -958,13 +1020,15 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
                 a.1 += leaf;
                 a.2 += ptl;
             }
-            (acc, px)
+            (acc, px, hits)
         })
         .collect();
     let mut tot = vec![(0u64, 0.0f64, 0.0f64); scene.objects.len() + 1];
     let mut img_leaf = hirad::render::Image::new(view.width, view.height, Vec3::ZERO);
     let mut img_pt = img_leaf.clone();
-    for (y, (r, px)) in rows.into_iter().enumerate() {
+    let mut hits = Vec::new();
+    for (y, (r, px, hs)) in rows.into_iter().enumerate() {
+        hits.extend(hs);
         for (x, (l, p)) in px.into_iter().enumerate() {
             img_leaf.set(x as u32, y as u32, l);
             img_pt.set(x as u32, y as u32, p);
@@ -1042,6 +1106,9 @@ fn image(o: &Opts, scene: &Scene, caster: &RayCaster, sol: &Solution) {
         "{:40} {:>8} {:>10} {:>10} {:>7} {:>9}",
         "object", "pixels", "leaf", "path", "ratio", "Δ/total"
     );
+    if !hits.is_empty() {
+        image_bins(&hits);
+    }
     for &i in idx.iter().take(25) {
         let name: String = if i < scene.objects.len() {
             scene.objects[i].chars().take(40).collect()
@@ -1184,7 +1251,7 @@ fn brute_irradiance(
     let (mut sum, mut open) = (0.0, 0usize);
     for _ in 0..m {
         let x = sample_triangle(&re.verts, rng.next_f32(), rng.next_f32());
-        if covers.covered(re.tri, x) {
+        if covers.covered(re.tri, re.normal, x) {
             continue;
         }
         open += 1;
@@ -1209,7 +1276,7 @@ fn brute_irradiance(
             else {
                 continue;
             };
-            if covers.covered(es.tri, y) {
+            if covers.covered(es.tri, es.normal, y) {
                 continue;
             }
             let (a, bb) = (x + re.normal * OFF, y + es.normal * OFF);
