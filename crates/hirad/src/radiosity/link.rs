@@ -135,8 +135,9 @@ impl LinkKind {
     }
 }
 
-/// The links of a solution, sorted by receiver (stable, so the order within a receiver is
-/// the deterministic refinement order), with one group per receiver.
+/// The links of a solution, sorted by receiver (in place; the order within a receiver
+/// follows from the refinement order alone, so it does not depend on the thread count), with
+/// one group per receiver.
 #[derive(Clone, Debug, Default)]
 pub struct LinkSet {
     pub links: Vec<Link>,
@@ -192,7 +193,7 @@ impl LinkSet {
                 kept.extend_from_slice(&samples[s..s + pl]);
             }
         }
-        links.sort_by_key(|l| l.recv);
+        links.sort_unstable_by_key(|l| l.recv);
         let mut groups = Vec::new();
         let mut s = 0usize;
         while s < links.len() {

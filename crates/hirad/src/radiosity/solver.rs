@@ -62,6 +62,9 @@ const REFINE_DRIFT: f64 = 0.05;
 /// many of their points per cell on average; below that a cell's share is mostly noise.
 const DEPOSIT_POINTS_PER_CELL: usize = 4;
 
+/// Links decided at a time in a refinement pass (see [`Solver::refine_chunk`]).
+const REFINE_CHUNK: usize = 1 << 18;
+
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
 /// cast, and the samples of a kept link from a directional cluster.
 type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
@@ -474,8 +477,43 @@ impl<'a> Solver<'a> {
             (set.links, set.samples)
         };
         let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
-        let oracle_kind = self.cfg.refine;
         while !frontier.is_empty() {
+            // One pass over the frontier, a chunk at a time: the decisions of a chunk are all
+            // that is held beside the links, and the frontier's memory is given back as it is
+            // consumed (reversed, so that chunks come off its end in order).
+            frontier.reverse();
+            let mut next: Vec<Link> = Vec::new();
+            while !frontier.is_empty() {
+                let mut chunk =
+                    frontier.split_off(frontier.len() - frontier.len().min(REFINE_CHUNK));
+                frontier.shrink_to_fit();
+                chunk.reverse();
+                self.refine_chunk(
+                    &chunk,
+                    (&mut done, &mut next, &mut samples),
+                    frontier.len(),
+                    cancel,
+                )?;
+            }
+            frontier = next;
+        }
+        self.set = LinkSet::from_links(done, &samples, per_link);
+        self.note_peak();
+        Ok(())
+    }
+
+    /// Decide the links of `chunk`: kept links go to `done` (their samples to `samples`), the
+    /// children of split ones to `next`; `rest` links of the pass are still to come. When the
+    /// growth would pass the memory budget, the chunk is decided again without refinement.
+    fn refine_chunk(
+        &mut self,
+        chunk: &[Link],
+        (done, next, samples): (&mut Vec<Link>, &mut Vec<Link>, &mut Vec<Sample>),
+        rest: usize,
+        cancel: &AtomicBool,
+    ) -> Result<()> {
+        let oracle_kind = self.cfg.refine;
+        loop {
             if cancel.load(Ordering::Relaxed) {
                 return Err(Error::Interrupted);
             }
@@ -483,12 +521,12 @@ impl<'a> Solver<'a> {
             let decided: Vec<Decided> = {
                 let ctx = self.ctx();
                 let this = &*self;
-                frontier
+                chunk
                     .par_iter()
                     .map(|l| this.decide(&ctx, l, allow, oracle_kind))
                     .collect()
             };
-            // Growth of this pass.
+            // Growth of this chunk.
             let mut new_links = 0usize;
             let mut to_split: Vec<u32> = Vec::new();
             for (a, l, _, _) in &decided {
@@ -519,7 +557,8 @@ impl<'a> Solver<'a> {
             });
             to_split.sort_unstable();
             to_split.dedup();
-            let projected = self.memory_now(done.len() + frontier.len() + new_links)
+            let projected = self
+                .memory_now(done.len() + rest + chunk.len() + next.len() + new_links)
                 + (to_split.len() * 4 * (Elements::BYTES_PER_ELEMENT + 8)) as u64;
             for (_, _, r, _) in &decided {
                 self.rays += r;
@@ -531,13 +570,13 @@ impl<'a> Solver<'a> {
                         "memory budget {:.3} GB reached ({} links, {} elements): refinement \
                          stopped, the solution is coarser than eps = {:.3e} asks for",
                         budget as f64 / 1e9,
-                        done.len() + frontier.len(),
+                        done.len() + rest + chunk.len() + next.len(),
                         self.el.len(),
                         self.eps
                     );
                     tracing::warn!("{msg}");
                     self.stats.warnings.push(msg);
-                    // Re-decide this pass without refinement: every link is kept.
+                    // Decide this chunk again without refinement: every link is kept.
                     continue;
                 }
             }
@@ -552,7 +591,7 @@ impl<'a> Solver<'a> {
                     self.compute_direct(n_before as u32, self.el.len() as u32);
                 }
             }
-            let mut next = Vec::with_capacity(new_links);
+            next.reserve(new_links);
             for (a, mut l, _, m) in decided {
                 match a {
                     Action::Keep => {
@@ -583,14 +622,16 @@ impl<'a> Solver<'a> {
                     }
                 }
             }
-            frontier = next;
-            self.links = done;
-            self.note_peak();
-            done = std::mem::take(&mut self.links);
+            // The peak counts the links held now: decided, kept, to come and new.
+            self.links = std::mem::take(done);
+            let held = rest + chunk.len() + next.capacity();
+            let m = self.memory_now(held)
+                + (chunk.len() * std::mem::size_of::<Decided>()
+                    + samples.capacity() * std::mem::size_of::<Sample>()) as u64;
+            self.peak = self.peak.max(m);
+            *done = std::mem::take(&mut self.links);
+            return Ok(());
         }
-        self.set = LinkSet::from_links(done, &samples, per_link);
-        self.note_peak();
-        Ok(())
     }
 
     fn ctx(&self) -> KernelCtx<'_> {
