@@ -119,14 +119,22 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) 
     if poly.len() < 3 || (x - poly[0]).dot(poly_normal) <= 0.0 {
         return 0.0;
     }
-    let (clipped, m) = clip_to_hemisphere(x, n, poly);
-    if m < 3 {
-        return 0.0;
-    }
+    let mut buf = [DVec3::ZERO; 16];
+    // Clipped only when part of it lies below the horizon (the polygon as it is otherwise).
+    let pts: &[DVec3] = if poly.iter().all(|&p| n.dot(p - x) >= 0.0) {
+        poly
+    } else {
+        let m = clip_to_hemisphere(x, n, poly, &mut buf);
+        if m < 3 {
+            return 0.0;
+        }
+        &buf[..m]
+    };
+    let m = pts.len();
     let mut sum = 0.0;
     for e in 0..m {
-        let a = clipped[e] - x;
-        let b = clipped[(e + 1) % m] - x;
+        let a = pts[e] - x;
+        let b = pts[(e + 1) % m] - x;
         let c = a.cross(b);
         let cl = c.length();
         if cl <= 0.0 {
@@ -139,9 +147,9 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) 
 }
 
 /// The part of the convex polygon `poly` above the plane through `x` with normal `n`
-/// (Sutherland–Hodgman): its corners and their number (below 3: nothing is above).
-fn clip_to_hemisphere(x: DVec3, n: DVec3, poly: &[DVec3]) -> ([DVec3; 16], usize) {
-    let mut clipped = [DVec3::ZERO; 16];
+/// (Sutherland–Hodgman), written to `clipped`: the number of its corners (below 3: nothing is
+/// above).
+fn clip_to_hemisphere(x: DVec3, n: DVec3, poly: &[DVec3], clipped: &mut [DVec3; 16]) -> usize {
     let mut m = 0usize;
     let k = poly.len().min(15);
     for e in 0..k {
@@ -159,7 +167,7 @@ fn clip_to_hemisphere(x: DVec3, n: DVec3, poly: &[DVec3]) -> ([DVec3; 16], usize
             m += 1;
         }
     }
-    (clipped, m)
+    m
 }
 
 /// Area-uniform point, from two uniform numbers in [0, 1), of the part of triangle `v` that
@@ -171,7 +179,8 @@ pub fn sample_triangle_above(x: Vec3, n: Vec3, v: &[Vec3; 3], u1: f32, u2: f32) 
     if v.iter().all(|p| nd.dot(p.as_dvec3() - xd) >= 0.0) {
         return Some(sample_triangle(v, u1, u2));
     }
-    let (c, m) = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()));
+    let mut c = [DVec3::ZERO; 16];
+    let m = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()), &mut c);
     if m < 3 {
         return None;
     }
