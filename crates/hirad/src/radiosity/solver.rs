@@ -65,6 +65,9 @@ const DEPOSIT_POINTS_PER_CELL: usize = 4;
 /// Links decided at a time in a refinement pass (see [`Solver::refine_chunk`]).
 const REFINE_CHUNK: usize = 1 << 18;
 
+/// Receivers gathered at a time (see [`Solver::gather`]).
+const GATHER_CHUNK: usize = 1 << 12;
+
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
 /// cast, and the samples of a kept link from a directional cluster.
 type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
@@ -418,9 +421,12 @@ impl<'a> Solver<'a> {
                 rel
             ));
             tracing::debug!(
-                "iteration {it}: links {} elements {} power {p:.6e} change {rel:.2e}",
+                "iteration {it}: links {} elements {} deposits {} cluster entries {} power \
+                 {p:.6e} change {rel:.2e}",
                 self.set.len(),
-                self.el.len()
+                self.el.len(),
+                self.deposits.len(),
+                self.entries.len()
             );
             if it > 1 && rel < self.cfg.tol_converge {
                 if refined {
@@ -476,6 +482,9 @@ impl<'a> Solver<'a> {
             let set = std::mem::take(&mut self.set);
             (set.links, set.samples)
         };
+        // The gather rebuilds its hand-outs and deposits from the refined links.
+        self.entries = Vec::new();
+        self.deposits = Vec::new();
         let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
         while !frontier.is_empty() {
             // One pass over the frontier, a chunk at a time: the decisions of a chunk are all
@@ -816,65 +825,9 @@ impl<'a> Solver<'a> {
         (Action::Keep, link, rays, members)
     }
 
-    /// Gather over every link, per receiver.
+    /// Gather over every link, per receiver, a chunk of receivers at a time (their hand-outs
+    /// and deposits go straight into the flat arrays, not held twice).
     fn gather(&mut self) {
-        let el = &self.el;
-        let set = &self.set;
-        let links = &set.links;
-        let res: Vec<Gathered> = self
-            .set
-            .groups
-            .par_iter()
-            .map(|&(r, a, b)| {
-                let re = &el.elems[r as usize];
-                let mut g = Gathered {
-                    recv: r,
-                    ..Default::default()
-                };
-                for l in &links[a as usize..b as usize] {
-                    let contrib = set.gather(l, el);
-                    let se = &el.elems[l.src as usize];
-                    if re.kind == Kind::Cluster {
-                        let d = (se.centroid - re.centroid).normalize_or_zero();
-                        g.entries.push(Entry {
-                            d,
-                            sc: se.centroid,
-                            sn: se.facing_normal(),
-                            h: contrib,
-                            k: l.k,
-                        });
-                    } else {
-                        if l.deposit.depth() > 0 {
-                            g.deposits.push((l.deposit, contrib));
-                        } else {
-                            g.h += contrib;
-                        }
-                        g.k_sum += l.k as f64;
-                        if se.kind == Kind::Cluster {
-                            g.h_cluster += contrib.element_sum();
-                        }
-                    }
-                }
-                // Deposits are followed only as deep as the receiver's points give each cell
-                // at least `DEPOSIT_POINTS_PER_CELL` of them; none deep: spread evenly.
-                let pts: usize = g.deposits.iter().map(|d| d.0.points()).sum();
-                let mut depth = 0;
-                while depth < Deposit::LEVELS && pts >= DEPOSIT_POINTS_PER_CELL << (2 * (depth + 1))
-                {
-                    depth += 1;
-                }
-                if depth == 0 {
-                    for (_, c) in g.deposits.drain(..) {
-                        g.h += c;
-                    }
-                } else {
-                    for d in &mut g.deposits {
-                        d.0 = d.0.truncated(depth);
-                    }
-                }
-                g
-            })
-            .collect();
         for h in self.el.h.iter_mut() {
             *h = DVec3::ZERO;
         }
@@ -891,21 +844,80 @@ impl<'a> Solver<'a> {
         self.deposits.clear();
         self.dep_ranges.clear();
         self.dep_ranges.resize(self.el.len(), (0, 0));
-        for g in res {
-            let id = g.recv as usize;
-            if !g.deposits.is_empty() {
-                let s = self.deposits.len() as u32;
-                self.deposits.extend_from_slice(&g.deposits);
-                self.dep_ranges[id] = (s, self.deposits.len() as u32);
-            }
-            if self.el.elems[id].kind == Kind::Cluster {
-                let s = self.entries.len() as u32;
-                self.entries.extend_from_slice(&g.entries);
-                self.cl_ranges[id] = (s, self.entries.len() as u32);
-            } else {
-                self.el.h[id] = g.h;
-                self.h_cluster[id] = g.h_cluster;
-                self.k_sum[id] = g.k_sum;
+        let n_groups = self.set.groups.len();
+        for start in (0..n_groups).step_by(GATHER_CHUNK) {
+            let el = &self.el;
+            let set = &self.set;
+            let links = &set.links;
+            let res: Vec<Gathered> = set.groups[start..(start + GATHER_CHUNK).min(n_groups)]
+                .par_iter()
+                .map(|&(r, a, b)| {
+                    let re = &el.elems[r as usize];
+                    let mut g = Gathered {
+                        recv: r,
+                        ..Default::default()
+                    };
+                    for l in &links[a as usize..b as usize] {
+                        let contrib = set.gather(l, el);
+                        let se = &el.elems[l.src as usize];
+                        if re.kind == Kind::Cluster {
+                            let d = (se.centroid - re.centroid).normalize_or_zero();
+                            g.entries.push(Entry {
+                                d,
+                                sc: se.centroid,
+                                sn: se.facing_normal(),
+                                h: contrib,
+                                k: l.k,
+                            });
+                        } else {
+                            if l.deposit.depth() > 0 {
+                                g.deposits.push((l.deposit, contrib));
+                            } else {
+                                g.h += contrib;
+                            }
+                            g.k_sum += l.k as f64;
+                            if se.kind == Kind::Cluster {
+                                g.h_cluster += contrib.element_sum();
+                            }
+                        }
+                    }
+                    // Deposits are followed only as deep as the receiver's points give each cell
+                    // at least `DEPOSIT_POINTS_PER_CELL` of them; none deep: spread evenly.
+                    let pts: usize = g.deposits.iter().map(|d| d.0.points()).sum();
+                    let mut depth = 0;
+                    while depth < Deposit::LEVELS
+                        && pts >= DEPOSIT_POINTS_PER_CELL << (2 * (depth + 1))
+                    {
+                        depth += 1;
+                    }
+                    if depth == 0 {
+                        for (_, c) in g.deposits.drain(..) {
+                            g.h += c;
+                        }
+                    } else {
+                        for d in &mut g.deposits {
+                            d.0 = d.0.truncated(depth);
+                        }
+                    }
+                    g
+                })
+                .collect();
+            for g in res {
+                let id = g.recv as usize;
+                if !g.deposits.is_empty() {
+                    let s = self.deposits.len() as u32;
+                    self.deposits.extend_from_slice(&g.deposits);
+                    self.dep_ranges[id] = (s, self.deposits.len() as u32);
+                }
+                if self.el.elems[id].kind == Kind::Cluster {
+                    let s = self.entries.len() as u32;
+                    self.entries.extend_from_slice(&g.entries);
+                    self.cl_ranges[id] = (s, self.entries.len() as u32);
+                } else {
+                    self.el.h[id] = g.h;
+                    self.h_cluster[id] = g.h_cluster;
+                    self.k_sum[id] = g.k_sum;
+                }
             }
         }
         self.note_peak();
