@@ -14,6 +14,7 @@
 
 use super::shut::ShutMasks;
 use crate::cluster::ClusterTree;
+use crate::geom::Aabb;
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -74,16 +75,11 @@ impl Covers {
             )
         };
         // Each object's extent (its box's diagonal) sets how narrow a gap is closed.
-        let mut boxes =
-            vec![(Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)); object_area.len()];
+        let mut boxes = vec![Aabb::EMPTY; object_area.len()];
         for t in 0..n {
-            let b = &mut boxes[scene.tri_object[t] as usize];
-            for p in scene.tri_vertices(t) {
-                b.0 = b.0.min(p);
-                b.1 = b.1.max(p);
-            }
+            boxes[scene.tri_object[t] as usize].grow_box(&scene.tri_bbox(t));
         }
-        let extent: Vec<f32> = boxes.iter().map(|b| (b.1 - b.0).length()).collect();
+        let extent: Vec<f32> = boxes.iter().map(|b| b.extent().length()).collect();
         let gap = |t: u32| GAP_REL * extent[scene.tri_object[t as usize] as usize];
         let per: Vec<Vec<(u32, Vec3)>> = (0..n)
             .into_par_iter()
@@ -187,8 +183,9 @@ impl Covers {
 /// covers (zero: both sides). Coplanar triangles (facing the same way unless `two_sided`)
 /// cover `i` on both sides where they overlap it with positive area, when they own the
 /// overlap: lower `rank` (emitter first, then object area, then triangle area), or equal rank
-/// and a lower id. A parallel triangle across a closed gap (at most `gap` of either's object
-/// away, in front of `i` unless `two_sided`) covers the side of `i` that faces it.
+/// and a lower id. A parallel triangle across a closed gap (no farther than the smaller of
+/// `gap(i)` and `gap(j)`, in front of `i` unless `two_sided`) covers the side of `i` that
+/// faces it.
 fn covering(
     scene: &Scene,
     tree: &ClusterTree,
