@@ -45,6 +45,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::NoProgress;
 use hirad::radiosity::element::{facing_weight, Element, Elements, Kind};
 use hirad::radiosity::formfactor::{point_to_polygon, sample_triangle, sample_triangle_above};
+use hirad::radiosity::link::NO_SAMPLES;
 use hirad::radiosity::overlap::Covers;
 use hirad::radiosity::{solve, Oracle, Solution, SolverConfig, VisibilityMode};
 use hirad::ray::RayCaster;
@@ -635,6 +636,12 @@ struct LinkRow {
     want: f64,
     /// The part of `want` on surfaces of a cluster receiver that its hand-out gives nothing.
     want_unhanded: f64,
+    /// `want` with the source element's mean radiosity (as a link without draw or samples
+    /// transfers it).
+    want_mean: f64,
+    /// 0: the source's mean radiosity, 1: drawn at the deposit (`Link::draw`), 2: per-sample
+    /// leaves (`Link::samples`).
+    treat: usize,
     dist: f64,
 }
 
@@ -656,6 +663,7 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                 .max((v[2] - v[0]).length())
         }
     };
+    let covers = Covers::build(scene, tree, o.two_sided);
     let rows: Vec<LinkRow> = set
         .links
         .par_iter()
@@ -696,7 +704,7 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
             }
             let src = ByArea::new(leaves, |s| el.elems[s as usize].area as f64);
             let mut rng = SplitMix64::new(li as u64 * 977 + 5);
-            let (mut acc, mut acc_zero) = (0.0, 0.0);
+            let (mut acc, mut acc_zero, mut acc_mean) = (0.0, 0.0, 0.0);
             for _ in 0..n {
                 let er = &el.elems[recv.pick(&mut rng) as usize];
                 let handed = re.kind == Kind::Surface
@@ -712,16 +720,19 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                 if cx <= 0.0 || cy <= 0.0 {
                     continue;
                 }
+                // Covered points neither receive nor emit (as in the solver).
+                if covers.covered(er.tri, er.normal, x) || covers.covered(es.tri, es.normal, y) {
+                    continue;
+                }
                 let (a, b) = (x + er.normal * OFF, y + es.normal * OFF);
                 let t = b - a;
                 let tl = t.length();
                 if caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
                     continue;
                 }
-                let v = el.b[if avg_b { l.src } else { sid } as usize].element_sum()
-                    * (cx * cy) as f64
-                    / (PI * r2 as f64)
-                    * src.total();
+                let g = (cx * cy) as f64 / (PI * r2 as f64) * src.total();
+                let v = el.b[if avg_b { l.src } else { sid } as usize].element_sum() * g;
+                acc_mean += el.b[l.src as usize].element_sum() * g;
                 acc += v;
                 if !handed {
                     acc_zero += v;
@@ -733,6 +744,14 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
                 got,
                 want: recv.total() * acc / n as f64,
                 want_unhanded: recv.total() * acc_zero / n as f64,
+                want_mean: recv.total() * acc_mean / n as f64,
+                treat: if l.samples != NO_SAMPLES {
+                    2
+                } else if l.draw.depth() > 0 {
+                    1
+                } else {
+                    0
+                },
                 dist: ((re.centroid - se.centroid).length() / diam(re).max(diam(se))) as f64,
             })
         })
@@ -762,6 +781,22 @@ fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &
             "{name}: {c} links, delivered {g:.4} W, Monte Carlo {w:.4} W, ratio {:.4}",
             g / w
         );
+        if class == 0 {
+            for (t, name) in ["source mean", "drawn at deposits", "per-sample leaves"]
+                .iter()
+                .enumerate()
+            {
+                let rs = rows.iter().filter(|r| r.class == 0 && r.treat == t);
+                let (c, g, w, wm) = rs.fold((0usize, 0.0, 0.0, 0.0), |a, r| {
+                    (a.0 + 1, a.1 + r.got, a.2 + r.want, a.3 + r.want_mean)
+                });
+                println!(
+                    "  {name}: {c} links, delivered {g:.4} W, Monte Carlo {w:.4} W ({:.4}), with the source's mean {wm:.4} W ({:.4})",
+                    g / w,
+                    g / wm
+                );
+            }
+        }
         if class >= 2 {
             let unhanded = |near: bool| -> f64 {
                 rows.iter()
@@ -1358,6 +1393,203 @@ fn object_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster,
     }
 }
 
+/// How many links carry each (receiver point, source point) pair: cosine rays from random open
+/// points of every receiving surface (by area, both sides when two-sided), each weighted by
+/// the radiosity of the leaf it hits; a pair is carried by a link whose receiver is the
+/// point's leaf or an ancestor (surfaces, then clusters) and whose source is the hit leaf or
+/// an ancestor. In a solution that covers every pair once, all the weight is in "1".
+fn coverage(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
+    let el = &sol.elements;
+    let set = &sol.links;
+    let covers = Covers::build(scene, tree, o.two_sided);
+    let mut range = vec![(0u32, 0u32); el.len()];
+    for &(r, a, b) in &set.groups {
+        range[r as usize] = (a, b);
+    }
+    let sides = if o.two_sided { 2 } else { 1 };
+    let all: Vec<u32> = (0..scene.num_triangles() as u32 * sides)
+        .filter(|&i| {
+            el.elems[root(
+                sol,
+                i % scene.num_triangles() as u32,
+                i >= scene.num_triangles() as u32,
+            ) as usize]
+                .rho
+                .max_element()
+                > 0.0
+        })
+        .collect();
+    let nt = scene.num_triangles() as u32;
+    let pick = ByArea::new(all, |i| scene.areas[(i % nt) as usize] as f64);
+    let chain = |mut id: u32| {
+        let mut v = Vec::new();
+        while id != u32::MAX {
+            v.push(id);
+            id = el.elems[id as usize].parent;
+        }
+        v
+    };
+    const CHUNK: usize = 4096;
+    let n = o.samples;
+    // Per chunk: weight by number of links carrying the pair (0, 1, 2, 3+), and of the
+    // uncovered weight, by (receiver object, source object).
+    let parts: Vec<([f64; 4], [f64; 4], Vec<((usize, usize), f64)>)> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut rng = SplitMix64::new(c as u64 * 7919 + 3);
+            let (mut w, mut cnt) = ([0.0f64; 4], [0.0f64; 4]);
+            let mut miss: std::collections::HashMap<(usize, usize), f64> = Default::default();
+            for _ in 0..CHUNK.min(n - c * CHUNK) {
+                let i = pick.pick(&mut rng);
+                let (t, back) = (i % nt, i >= nt);
+                let r = root(sol, t, back);
+                let nrm = el.elems[r as usize].normal;
+                let p = sample_triangle(
+                    &scene.tri_vertices(t as usize),
+                    rng.next_f32(),
+                    rng.next_f32(),
+                );
+                if covers.covered(t, nrm, p) {
+                    continue;
+                }
+                let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
+                let Some(h) = caster.closest(p + nrm * OFF, d, 0.0, f32::INFINITY) else {
+                    continue;
+                };
+                let hb = scene.normals[h.tri as usize].dot(d) > 0.0;
+                if hb && !o.two_sided {
+                    continue;
+                }
+                let q = p + nrm * OFF + d * h.t;
+                if covers.covered(
+                    h.tri,
+                    scene.normals[h.tri as usize] * if hb { -1.0 } else { 1.0 },
+                    q,
+                ) {
+                    continue;
+                }
+                let sl = leaf_at(sol, root(sol, h.tri, hb), q);
+                let wt = el.b[sl as usize].element_sum();
+                if wt <= 0.0 {
+                    continue;
+                }
+                let srcs = chain(sl);
+                let mut k = 0usize;
+                for rid in chain(leaf_at(sol, r, p)) {
+                    let (a, b) = range[rid as usize];
+                    k += set.links[a as usize..b as usize]
+                        .iter()
+                        .filter(|l| srcs.contains(&l.src))
+                        .count();
+                }
+                w[k.min(3)] += wt;
+                cnt[k.min(3)] += 1.0;
+                if k == 0 {
+                    *miss
+                        .entry((
+                            scene.tri_object[t as usize] as usize,
+                            scene.tri_object[h.tri as usize] as usize,
+                        ))
+                        .or_default() += wt;
+                }
+            }
+            (w, cnt, miss.into_iter().collect())
+        })
+        .collect();
+    let (mut w, mut cnt) = ([0.0f64; 4], [0.0f64; 4]);
+    let mut miss: std::collections::HashMap<(usize, usize), f64> = Default::default();
+    for (pw, pc, pm) in parts {
+        for k in 0..4 {
+            w[k] += pw[k];
+            cnt[k] += pc[k];
+        }
+        for (key, v) in pm {
+            *miss.entry(key).or_default() += v;
+        }
+    }
+    let tw: f64 = w.iter().sum();
+    println!(
+        "{n} rays; share of the gathered radiosity carried by 0, 1, 2, 3+ links (share of rays):"
+    );
+    for k in 0..4 {
+        println!(
+            "  {k}: {:.5} ({:.5})",
+            w[k] / tw,
+            cnt[k] / cnt.iter().sum::<f64>()
+        );
+    }
+    let mut v: Vec<_> = miss.into_iter().collect();
+    v.sort_by(|a, b| b.1.total_cmp(&a.1));
+    println!("uncovered, by receiver object <- source object (share of all gathered):");
+    for ((ro, so), x) in v.iter().take(o.rows) {
+        println!(
+            "  {:40} <- {:40} {:.5}",
+            scene.objects[*ro],
+            scene.objects[*so],
+            x / tw
+        );
+    }
+}
+
+/// The shut masks against 64 cosine rays per point (no solve): per object, the share of its
+/// area the masks shut, and of that, the share whose rays meet a front face or nothing (light
+/// could reach it), as a mean over the shut points.
+fn shut_check(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster) {
+    let masks = hirad::radiosity::shut::ShutMasks::build(scene, tree, false);
+    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+    for t in 0..scene.num_triangles() {
+        by[scene.tri_object[t] as usize].push(t as u32);
+    }
+    let rows: Vec<(usize, f64, f64, f64)> = by
+        .par_iter()
+        .enumerate()
+        .filter(|(_, ts)| !ts.is_empty())
+        .map(|(obj, ts)| {
+            let tris = ByArea::new(ts.clone(), |t| scene.areas[t as usize] as f64);
+            let mut rng = SplitMix64::new(obj as u64 * 13 + 1);
+            let (mut n_shut, mut open_sum) = (0usize, 0.0f64);
+            for _ in 0..o.samples {
+                let t = tris.pick(&mut rng) as usize;
+                let nrm = scene.normals[t];
+                let p = sample_triangle(&scene.tri_vertices(t), rng.next_f32(), rng.next_f32());
+                if !masks.shut(t as u32, p) {
+                    continue;
+                }
+                n_shut += 1;
+                let mut open = 0;
+                for _ in 0..64 {
+                    let d = cosine_dir(nrm, rng.next_f32(), rng.next_f32());
+                    match caster.closest(p + nrm * OFF, d, 0.0, f32::INFINITY) {
+                        Some(h) if scene.normals[h.tri as usize].dot(d) > 0.0 => {}
+                        _ => open += 1,
+                    }
+                }
+                open_sum += open as f64 / 64.0;
+            }
+            let a = tris.total();
+            (
+                obj,
+                a,
+                n_shut as f64 / o.samples as f64,
+                open_sum / n_shut.max(1) as f64,
+            )
+        })
+        .collect();
+    let area: f64 = rows.iter().map(|r| r.1).sum();
+    let shut: f64 = rows.iter().map(|r| r.1 * r.2).sum();
+    let open: f64 = rows.iter().map(|r| r.1 * r.2 * r.3).sum();
+    println!("area {area:.3}, shut {shut:.3}, of it open to rays {open:.3} (cosine-weighted)");
+    let mut rows = rows;
+    rows.sort_by(|a, b| (b.1 * b.2 * b.3).total_cmp(&(a.1 * a.2 * a.3)));
+    println!("{:40} {:>9} {:>7} {:>7}", "object", "area", "shut", "open");
+    for r in rows.iter().take(o.rows) {
+        println!(
+            "{:40} {:9.3} {:7.3} {:7.3}",
+            scene.objects[r.0], r.1, r.2, r.3
+        );
+    }
+}
+
 fn main() {
     let o = parse();
     let scene = Scene::load(&o.scene, &SceneOptions::default()).expect("scene");
@@ -1386,6 +1618,9 @@ fn main() {
     if let Some(r) = &o.refine {
         cfg.refine = Oracle::parse(r).expect("refine");
     }
+    if o.mode == "shutcheck" {
+        return shut_check(&o, &scene, &tree, &RayCaster::new(&scene, &tree));
+    }
     let t = std::time::Instant::now();
     let sol = solve(&scene, &tree, &cfg, &NoProgress).expect("solve");
     let p = &sol.stats.power;
@@ -1405,6 +1640,7 @@ fn main() {
         "shut" => shut(&o, &scene, &tree, &caster, &sol),
         "leaf" => leaf_links(&o, &scene, &tree, &caster, &sol),
         "objlinks" => object_links(&o, &scene, &tree, &caster, &sol),
+        "coverage" => coverage(&o, &scene, &tree, &caster, &sol),
         m => panic!("unknown mode {m}"),
     }
 }
