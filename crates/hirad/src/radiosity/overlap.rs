@@ -31,8 +31,42 @@ pub struct Covers {
     sides: Vec<Vec3>,
     /// Per triangle: the coordinate its plane projection drops.
     axis: Vec<u8>,
+    /// Per triangle: its grid in `grids` (`u32::MAX`: none, its entries are few).
+    grid_of: Vec<u32>,
+    grids: Vec<CoverGrid>,
+    /// Entries (offsets into the triangle's range) per grid cell.
+    items: Vec<u32>,
     /// The parts inside closed solids.
     shut: ShutMasks,
+}
+
+/// A triangle covered by many triangles (a wall under a row of pictures) finds the few a
+/// point may lie under on a grid over its projection's box.
+#[derive(Clone, Debug)]
+struct CoverGrid {
+    lo: Vec2,
+    scale: Vec2,
+    /// Range of cell `c` in `items`: `cells[c]..cells[c + 1]`.
+    cells: [u32; GRID * GRID + 1],
+}
+
+/// Cells per side of a [`CoverGrid`].
+const GRID: usize = 8;
+
+/// Triangles with more entries than this get a [`CoverGrid`].
+const GRID_MIN: usize = 8;
+
+impl CoverGrid {
+    /// Cell range (x0..=x1, y0..=y1) of the box `lo..hi`, clamped to the grid.
+    fn span(&self, lo: Vec2, hi: Vec2) -> ((usize, usize), (usize, usize)) {
+        let c = |q: Vec2| {
+            let g = ((q - self.lo) * self.scale).floor();
+            let f = |x: f32| (x.max(0.0) as usize).min(GRID - 1);
+            (f(g.x), f(g.y))
+        };
+        let (a, b) = (c(lo), c(hi));
+        ((a.0, b.0), (a.1, b.1))
+    }
 }
 
 /// Normals closer than this (|cos| above `1 − PARALLEL`) make two triangles parallel.
@@ -54,6 +88,9 @@ impl Covers {
         shapes: Vec::new(),
         sides: Vec::new(),
         axis: Vec::new(),
+        grid_of: Vec::new(),
+        grids: Vec::new(),
+        items: Vec::new(),
         shut: ShutMasks::EMPTY,
     };
 
@@ -88,22 +125,38 @@ impl Covers {
         let mut offsets = Vec::with_capacity(n + 1);
         let (mut ids, mut shapes, mut sides) = (Vec::new(), Vec::new(), Vec::new());
         let axis: Vec<u8> = scene.normals.iter().map(|&n| drop_axis(n) as u8).collect();
+        let (mut grid_of, mut grids, mut items) = (vec![u32::MAX; n], Vec::new(), Vec::new());
         offsets.push(0);
         for (i, v) in per.into_iter().enumerate() {
+            let first = ids.len();
+            let a = axis[i] as usize;
             for (j, side) in v {
-                let a = axis[i] as usize;
                 shapes.push(scene.tri_vertices(j as usize).map(|p| project(p, a)));
                 ids.push(j);
                 sides.push(side);
             }
             offsets.push(ids.len() as u32);
+            if ids.len() - first > GRID_MIN {
+                let own = scene.tri_vertices(i).map(|p| project(p, a));
+                grid_of[i] = grids.len() as u32;
+                grids.push(cover_grid(&own, &shapes[first..], &mut items));
+            }
         }
+        tracing::debug!(
+            "covers: {} triangles covered, {} entries, at most {} on one triangle",
+            offsets.windows(2).filter(|w| w[1] > w[0]).count(),
+            ids.len(),
+            offsets.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0)
+        );
         Covers {
             offsets,
             ids,
             shapes,
             sides,
             axis,
+            grid_of,
+            grids,
+            items,
             shut: ShutMasks::build(scene, tree, two_sided),
         }
     }
@@ -172,10 +225,21 @@ impl Covers {
             return false;
         }
         let q = project(p, self.axis[tri as usize] as usize);
-        self.shapes[r.clone()]
-            .iter()
-            .zip(&self.sides[r])
-            .any(|(v, s)| (*s == Vec3::ZERO || s.dot(n) > 0.0) && inside(q, v))
+        let test = |k: usize| {
+            let s = self.sides[k];
+            (s == Vec3::ZERO || s.dot(n) > 0.0) && inside(q, &self.shapes[k])
+        };
+        match self.grid_of.get(tri as usize) {
+            Some(&g) if g != u32::MAX => {
+                let grid = &self.grids[g as usize];
+                let ((x, _), (y, _)) = grid.span(q, q);
+                let c = y * GRID + x;
+                self.items[grid.cells[c] as usize..grid.cells[c + 1] as usize]
+                    .iter()
+                    .any(|&k| test(r.start + k as usize))
+            }
+            _ => r.into_iter().any(test),
+        }
     }
 }
 
@@ -266,6 +330,33 @@ fn covering(
 }
 
 /// The coordinate dropped when projecting onto a plane of normal `n` (its largest component).
+/// The grid over the box of `own` (a triangle in its plane coordinates) listing in `items`
+/// the entries of `shapes` whose boxes meet each cell.
+fn cover_grid(own: &[Vec2; 3], shapes: &[[Vec2; 3]], items: &mut Vec<u32>) -> CoverGrid {
+    let lo = own[0].min(own[1]).min(own[2]);
+    let hi = own[0].max(own[1]).max(own[2]);
+    let mut grid = CoverGrid {
+        lo,
+        scale: Vec2::splat(GRID as f32) / (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE)),
+        cells: [0; GRID * GRID + 1],
+    };
+    let mut per: Vec<Vec<u32>> = vec![Vec::new(); GRID * GRID];
+    for (k, v) in shapes.iter().enumerate() {
+        let ((x0, x1), (y0, y1)) = grid.span(v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                per[y * GRID + x].push(k as u32);
+            }
+        }
+    }
+    for (c, list) in per.into_iter().enumerate() {
+        grid.cells[c] = items.len() as u32;
+        items.extend(list);
+    }
+    grid.cells[GRID * GRID] = items.len() as u32;
+    grid
+}
+
 fn drop_axis(n: Vec3) -> usize {
     let a = n.abs();
     if a.x >= a.y && a.x >= a.z {
@@ -321,6 +412,72 @@ fn overlap(a: &[Vec2; 3], b: &[Vec2; 3], tol: f32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cluster::{ClusterConfig, Strategy};
+    use crate::rng::SplitMix64;
+    use crate::scene::{Material, RawScene, SceneOptions};
+
+    /// A 4 × 4 floor (one triangle) under 16 coplanar tiles of 0.4 × 0.4 (two triangles each,
+    /// another object, so they own the overlap): the floor has 32 covering entries and a grid;
+    /// a point is covered exactly when it lies inside a tile.
+    #[test]
+    fn many_covers_are_found_on_the_grid() {
+        let mut raw = RawScene {
+            name: "tiles".into(),
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(8.0, 0.0, 0.0),
+                Vec3::new(0.0, 8.0, 0.0),
+            ],
+            triangles: vec![[0, 1, 2]],
+            tri_material: vec![0],
+            tri_object: vec![0],
+            objects: vec!["floor".into(), "tiles".into()],
+            materials: vec![Material::diffuse("grey", Vec3::splat(0.5))],
+            ..Default::default()
+        };
+        let mut tiles = Vec::new();
+        for i in 0..4 {
+            for j in 0..4 {
+                let (x, y) = (0.3 + i as f32, 0.2 + j as f32);
+                tiles.push((x, y));
+                let b = raw.positions.len() as u32;
+                raw.positions.extend([
+                    Vec3::new(x, y, 0.0),
+                    Vec3::new(x + 0.4, y, 0.0),
+                    Vec3::new(x + 0.4, y + 0.4, 0.0),
+                    Vec3::new(x, y + 0.4, 0.0),
+                ]);
+                raw.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+                raw.tri_material.extend([0, 0]);
+                raw.tri_object.extend([1, 1]);
+            }
+        }
+        let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+        let tree = ClusterTree::build(&scene, Strategy::Kdt, &ClusterConfig::default());
+        let covers = Covers::build(&scene, &tree, false);
+        assert_eq!(covers.of(0).len(), 32);
+        assert!(covers.grid_of[0] != u32::MAX, "the floor has a grid");
+        let mut rng = SplitMix64::new(7);
+        let (mut inside_tiles, mut outside) = (0, 0);
+        for _ in 0..20_000 {
+            let p = Vec3::new(rng.next_f32() * 4.2, rng.next_f32() * 4.2, 0.0);
+            let d = |x: f32, lo: f32| (x - lo).min(lo + 0.4 - x);
+            let under = tiles
+                .iter()
+                .map(|&(x, y)| d(p.x, x).min(d(p.y, y)))
+                .fold(f32::MIN, f32::max);
+            if under.abs() < 1e-4 {
+                continue;
+            }
+            assert_eq!(covers.covered(0, Vec3::Z, p), under > 0.0, "{p}");
+            if under > 0.0 {
+                inside_tiles += 1;
+            } else {
+                outside += 1;
+            }
+        }
+        assert!(inside_tiles > 1000 && outside > 1000);
+    }
 
     #[test]
     fn overlap_needs_positive_area() {
