@@ -177,11 +177,12 @@ pub fn load_raw(path: &Path) -> Result<RawScene> {
             "obj" => super::obj::load(&file)?,
             "gltf" | "glb" => super::gltf_io::load(&file)?,
             "ply" => super::ply::load(&file)?,
+            "mgf" => super::mgf::load(&file)?,
             _ => {
                 return Err(at(
                     m.file.span(),
                     format!(
-                        "mesh file {} is not .obj, .gltf, .glb or .ply",
+                        "mesh file {} is not .obj, .gltf, .glb, .ply or .mgf",
                         file.display()
                     ),
                 ))

@@ -394,7 +394,7 @@ impl Scene {
         }
     }
 
-    /// Load a scene by path (OBJ, glTF/GLB, PLY, TOML scene file) or by built-in name
+    /// Load a scene by path (OBJ, glTF/GLB, PLY, MGF, TOML scene file) or by built-in name
     /// (`cornell`, `office`, `soup`, `trees`, `furnace`).
     pub fn load(spec: &str, opts: &SceneOptions) -> Result<Scene> {
         let t0 = std::time::Instant::now();
@@ -491,11 +491,12 @@ fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
         "obj" => obj::load(path)?,
         "gltf" | "glb" => gltf_io::load(path)?,
         "ply" => ply::load(path)?,
+        "mgf" => mgf::load(path)?,
         "toml" => return desc::load(path, opts),
         _ => {
             return Err(Error::input(
                 path,
-                "unknown file type (expected .obj, .gltf, .glb, .ply or .toml)",
+                "unknown file type (expected .obj, .gltf, .glb, .ply, .mgf or .toml)",
             ))
         }
     };
@@ -509,6 +510,7 @@ pub mod builtin;
 pub mod desc;
 pub mod export;
 pub mod gltf_io;
+pub mod mgf;
 pub mod obj;
 pub mod ply;
 

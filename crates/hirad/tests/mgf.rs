@@ -1,0 +1,535 @@
+//! MGF 2.0 loader: the classic test scenes of `shared/scenes/mgf` against the counts, emitters
+//! and bounding boxes of its README (skipped when the directory is absent), hand-made files
+//! for every construct (xf arrays, includes, holes, mirroring, sides, concave polygons, errors),
+//! and a deterministic no-panic mutation test.
+
+use glam::Vec3;
+use hirad::rng::SplitMix64;
+use hirad::scene::{mgf, Scene, SceneOptions};
+use std::path::{Path, PathBuf};
+
+fn mgf_dir() -> Option<PathBuf> {
+    let d = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/scenes/mgf"
+    ));
+    if d.is_dir() {
+        Some(d)
+    } else {
+        eprintln!("skipped: {} is absent", d.display());
+        None
+    }
+}
+
+fn load(p: &Path) -> Scene {
+    Scene::load(p.to_str().unwrap(), &SceneOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn luminance(p: glam::DVec3) -> f64 {
+    0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z
+}
+
+/// Write `files` (relative path, content) into a fresh temp dir.
+fn files(list: &[(&str, &str)]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in list {
+        let p = dir.path().join(name);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    dir
+}
+
+fn load_str(text: &str) -> hirad::Result<Scene> {
+    let dir = files(&[("t.mgf", text)]);
+    Scene::load(
+        dir.path().join("t.mgf").to_str().unwrap(),
+        &SceneOptions::default(),
+    )
+}
+
+const QUAD: &str = "m white =\n  rd 0.5\nv a =\n p 0 0 0\nv b =\n p 1 0 0\nv c =\n p 1 1 0\n\
+                    v d =\n p 0 1 0\n";
+
+/// Root file, triangles, emitted power (lm), bounding box min and max.
+type Golden = (&'static str, usize, f64, [f32; 3], [f32; 3]);
+
+/// Triangles, emitted power (lm) and bounding box as listed in `shared/scenes/mgf/README.md`.
+#[test]
+fn root_scenes_match_readme() {
+    let Some(dir) = mgf_dir() else { return };
+    #[rustfmt::skip]
+    let golden: [Golden; 9] = [
+        ("cube.mgf", 67, 2.0e5, [0.0, 0.0, 0.0], [10.0, 9.8, 10.0]),
+        ("examp1.mgf", 484, 8.7e3, [-0.62, -0.13, -0.05], [0.62, 0.13, 0.05]),
+        ("corridor.mgf", 936, 2.3e6, [-5.0, 0.0, -0.3], [15.0, 20.0, 10.3]),
+        ("soda.mgf", 95_908, 1.6e3, [-2.03, -0.19, -3.81], [3.05, 2.57, 6.36]),
+        ("office2/office2.mgf", 741, 2.6e3, [-0.08, -0.15, -0.02], [4.0, 5.75, 2.8]),
+        ("office3/office.mgf", 22_428, 1.7e4, [-2.29, 1.12, -2.29], [2.29, 3.89, 2.29]),
+        ("office1/graz.mgf", 26_928, 4.5e3, [-0.3, -0.3, -0.01], [5.32, 4.73, 2.65]),
+        ("hospital/main.mgf", 21_118, 1.4e4, [-5.0, 0.0, -0.18], [8.5, 13.0, 2.5]),
+        ("hospital/hosp.mgf", 41_748, 2.0e4, [-5.0, 0.0, -0.18], [8.5, 13.0, 2.5]),
+    ];
+    let mut failures = Vec::new();
+    for (name, tris, lm, min, max) in golden {
+        let s = load(&dir.join(name));
+        let power = luminance(s.emitted_power());
+        let (bmin, bmax) = (s.bbox.min, s.bbox.max);
+        println!(
+            "{name:22} {:>7} tris (README ≈ {tris}), {:>6} dropped, {power:10.4e} lm (≈ {lm:.1e}), \
+             bbox {bmin:.3} → {bmax:.3}, {:.3} s",
+            s.num_triangles(),
+            s.report.degenerate_dropped,
+            s.report.load_seconds
+        );
+        let n = s.num_triangles() as f64;
+        if (n - tris as f64).abs() > 0.02 * tris as f64 {
+            failures.push(format!("{name}: {n} triangles, README ≈ {tris}"));
+        }
+        // README powers have two significant digits; tessellated spheres lose a few percent.
+        if (power - lm).abs() > 0.1 * lm {
+            failures.push(format!("{name}: {power:.4e} lm, README {lm:.1e}"));
+        }
+        // The README's boxes bound curved primitives conservatively (a cylinder along z from
+        // 0 to 10 of radius 0.3 counts as z ∈ [−0.3, 10.3]), so the tessellated box lies
+        // inside them and is close: 0.02 + 3 % of the extent.
+        let (rmin, rmax) = (Vec3::from(min), Vec3::from(max));
+        let tol = 0.02 + 0.03 * (rmax - rmin).max_element();
+        let inside = bmin.cmpge(rmin - 0.01).all() && bmax.cmple(rmax + 0.01).all();
+        if !inside
+            || (bmin - rmin).abs().max_element() > tol
+            || (bmax - rmax).abs().max_element() > tol
+        {
+            failures.push(format!(
+                "{name}: bbox {bmin} → {bmax}, README {min:?} → {max:?}"
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// `office1/graz.mgf` against the OBJ converted from it with the same tessellation.
+#[test]
+fn graz_matches_obj_triangle_count() {
+    let Some(dir) = mgf_dir() else { return };
+    let s = load(&dir.join("office1/graz.mgf"));
+    let n = s.num_triangles() as f64;
+    assert!((n - 26_928.0).abs() <= 0.02 * 26_928.0, "{n} triangles");
+    // graz is two-sided throughout (MGF default), examp1 and office2 are not.
+    let m = mgf::load_with(&dir.join("office1/graz.mgf"), 4).unwrap();
+    assert!(m.all_two_sided());
+    let m = mgf::load_with(&dir.join("office2/office2.mgf"), 4).unwrap();
+    assert!(!m.all_two_sided());
+}
+
+/// The largest scenes load well under a second in release builds.
+#[test]
+fn load_time_of_largest() {
+    let Some(dir) = mgf_dir() else { return };
+    for name in ["soda.mgf", "hospital/main.mgf", "office1/graz.mgf"] {
+        let t0 = std::time::Instant::now();
+        let s = load(&dir.join(name));
+        let dt = t0.elapsed().as_secs_f64();
+        println!("{name}: {} triangles in {dt:.3} s", s.num_triangles());
+        if !cfg!(debug_assertions) {
+            assert!(dt < 2.0, "{name} took {dt:.3} s");
+        }
+    }
+}
+
+/// More divisions, more triangles.
+#[test]
+fn divisions_parameter() {
+    let s = format!("{QUAD}v z =\np 0 0 0\nn 0 0 1\nsph a 1\nring z 0 1\n");
+    let dir = files(&[("t.mgf", &s)]);
+    let p = dir.path().join("t.mgf");
+    let n4 = mgf::load_with(&p, 4).unwrap().raw.triangles.len();
+    let n2 = mgf::load_with(&p, 2).unwrap().raw.triangles.len();
+    assert_eq!(n4, 224 + 16);
+    assert_eq!(n2, 48 + 8);
+    assert!(mgf::load_with(&p, 0).is_err());
+}
+
+/// `xf -a 3 -t 1 0 0` instantiates a unit quad at x = 0, 1, 2.
+#[test]
+fn xf_array_of_quads() {
+    let s = load_str(&format!("{QUAD}xf -a 3 -t 1 0 0\nf a b c d\nxf\n")).unwrap();
+    assert_eq!(s.num_triangles(), 6);
+    assert!((s.total_area() - 3.0).abs() < 1e-6);
+    assert_eq!(s.bbox.min, Vec3::ZERO);
+    assert_eq!(s.bbox.max, Vec3::new(3.0, 1.0, 0.0));
+    let mut xs: Vec<i32> = (0..6)
+        .map(|i| {
+            s.tri_vertices(i)
+                .iter()
+                .map(|p| p.x)
+                .fold(f32::MAX, f32::min) as i32
+        })
+        .collect();
+    xs.sort();
+    assert_eq!(xs, vec![0, 0, 1, 1, 2, 2]);
+}
+
+/// Nested arrays: 2 × 3 quads, cumulative transforms; `-i` repeats; plain blocks nest.
+#[test]
+fn xf_nested_arrays_and_iterate() {
+    let s = load_str(&format!(
+        "{QUAD}xf -a 2 -t 0 2 0\nxf -a 3 -t 2 0 0\nf a b c d\nxf\nxf\n\
+         xf -t 0 0 5\nxf -i 3 -t 1 0 0\nf a b c d\nxf\nxf\n"
+    ))
+    .unwrap();
+    assert_eq!(s.num_triangles(), 14);
+    assert!((s.total_area() - 7.0).abs() < 1e-5);
+    assert_eq!(s.bbox.min, Vec3::ZERO);
+    assert_eq!(s.bbox.max, Vec3::new(5.0, 3.0, 5.0));
+    // The iterated quad sits at x = 3..4, z = 5.
+    let top: Vec<_> = (0..14).filter(|&i| s.tri_vertices(i)[0].z == 5.0).collect();
+    assert_eq!(top.len(), 2);
+    for i in top {
+        for p in s.tri_vertices(i) {
+            assert!((3.0..=4.0).contains(&p.x), "{p}");
+        }
+    }
+    // The spec's example: a 3 × 5 grid of spheres (grid size 3) at z = 10.
+    let s =
+        load_str("v vc =\n\tp 0 0 0\nxf -t 1 1 10 -a 3 -t 3 0 0 -a 5 -t 0 3 0\n\tsph vc .5\nxf\n")
+            .unwrap();
+    assert_eq!(s.num_triangles(), 15 * 224);
+    assert!(
+        (s.bbox.min - Vec3::new(0.5, 0.5, 9.5)).length() < 1e-5,
+        "{:?}",
+        s.bbox
+    );
+    assert!(
+        (s.bbox.max - Vec3::new(7.5, 13.5, 10.5)).length() < 1e-5,
+        "{:?}",
+        s.bbox
+    );
+    // Rotations: a quarter turn about z maps the quad to x in [-1, 0].
+    let s = load_str(&format!("{QUAD}xf -rz 90\nf a b c d\nxf\n")).unwrap();
+    assert!((s.bbox.min - Vec3::new(-1.0, 0.0, 0.0)).length() < 1e-6);
+    assert!((s.bbox.max - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6);
+}
+
+/// `i` resolves relative to the including file and applies its transform; arrays on `i`.
+#[test]
+fn include_with_transform_and_relative_path() {
+    let dir = files(&[
+        (
+            "main.mgf",
+            "i sub/part.mgf -s 2 -t 10 0 0\ni sub/part.mgf -a 2 -t 0 0 3\n",
+        ),
+        ("sub/part.mgf", "i quad.mgf\n"),
+        ("sub/quad.mgf", &format!("{QUAD}f a b c d\n")),
+    ]);
+    let s = load(&dir.path().join("main.mgf"));
+    assert_eq!(s.num_triangles(), 6);
+    assert!((s.total_area() - 6.0).abs() < 1e-5);
+    assert_eq!(s.bbox.min, Vec3::ZERO);
+    assert_eq!(s.bbox.max, Vec3::new(12.0, 2.0, 3.0));
+}
+
+/// An include loop and a missing include are errors naming the file and line.
+#[test]
+fn include_loop_is_an_error() {
+    let dir = files(&[("a.mgf", "# a\ni b.mgf\n"), ("b.mgf", "\n\ni a.mgf\n")]);
+    let e = Scene::load(
+        dir.path().join("a.mgf").to_str().unwrap(),
+        &SceneOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("b.mgf:3") && e.contains("loop"), "{e}");
+    let e = load_str("i nowhere.mgf\n").unwrap_err().to_string();
+    assert!(e.contains("t.mgf:1") && e.contains("nowhere.mgf"), "{e}");
+    // A chain deeper than the limit is an error, not a stack overflow.
+    let mut list: Vec<(String, String)> = (0..80)
+        .map(|i| (format!("d{i}.mgf"), format!("i d{}.mgf\n", i + 1)))
+        .collect();
+    list.push(("d80.mgf".into(), format!("{QUAD}f a b c d\n")));
+    let refs: Vec<(&str, &str)> = list.iter().map(|(a, b)| (a.as_str(), b.as_str())).collect();
+    let dir = files(&refs);
+    let e = Scene::load(
+        dir.path().join("d0.mgf").to_str().unwrap(),
+        &SceneOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("deeper"), "{e}");
+}
+
+/// `fh` with a square hole: area = outer − hole, all triangles facing +z.
+#[test]
+fn face_with_hole() {
+    let s = load_str(
+        "m w =\nrd .5\nv o1 =\np 0 0 0\nv o2 =\np 4 0 0\nv o3 =\np 4 4 0\nv o4 =\np 0 4 0\n\
+         v h1 =\np 1 1 0\nv h2 =\np 1 3 0\nv h3 =\np 3 3 0\nv h4 =\np 3 1 0\n\
+         fh o1 o2 o3 o4 - h1 h2 h3 h4\n",
+    )
+    .unwrap();
+    assert!((s.total_area() - 12.0).abs() < 1e-5, "{}", s.total_area());
+    assert_eq!(s.num_triangles(), 8);
+    assert!(s.normals.iter().all(|n| n.z > 0.99));
+}
+
+/// Mirroring (`-my`) reverses the vertex order so the mirrored face still faces +z.
+#[test]
+fn mirror_flips_winding() {
+    let s = load_str(&format!("{QUAD}xf -my\nf a b c d\nxf\n")).unwrap();
+    assert_eq!(s.bbox.min, Vec3::new(0.0, -1.0, 0.0));
+    assert!(s.normals.iter().all(|n| n.z > 0.99), "{:?}", s.normals);
+    // Without the mirror, the same face also faces +z; reversed order faces −z.
+    let s = load_str(&format!("{QUAD}f d c b a\n")).unwrap();
+    assert!(s.normals.iter().all(|n| n.z < -0.99));
+    // A mirrored closed sphere still faces outwards.
+    let s = load_str(&format!("{QUAD}xf -mx\nsph c 1\nxf\n")).unwrap();
+    for i in 0..s.num_triangles() {
+        let c = s.tri_centroid(i) - Vec3::new(-1.0, 1.0, 0.0);
+        assert!(s.normals[i].dot(c) > 0.0);
+    }
+}
+
+/// `sides` is recorded per material; two-sided is the default.
+#[test]
+fn sides_per_material() {
+    let text = format!(
+        "{QUAD}f a b c d\nm one =\nsides 1\nrd .3\nf a b c\nm two = one\nsides 2\nf a c d\n"
+    );
+    let dir = files(&[("t.mgf", &text)]);
+    let m = mgf::load_with(&dir.path().join("t.mgf"), 4).unwrap();
+    assert_eq!(m.two_sided, vec![true, false, true]);
+    assert!(!m.all_two_sided());
+    let names: Vec<_> = m.raw.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["white", "one", "two"]);
+    let e = load_str(&format!("{QUAD}sides 3\n"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(":11:"), "{e}");
+}
+
+/// A concave polygon (a U of area 3 × 3 − 2 = 7) is ear-clipped exactly; a repeated closing vertex is
+/// dropped.
+#[test]
+fn concave_polygon_area() {
+    let pts = [
+        (0, 0),
+        (3, 0),
+        (3, 3),
+        (2, 3),
+        (2, 1),
+        (1, 1),
+        (1, 3),
+        (0, 3),
+    ];
+    let mut text = String::from("m w =\nrd .5\n");
+    for (i, (x, y)) in pts.iter().enumerate() {
+        text += &format!("v p{i} =\np {x} {y} 0\n");
+    }
+    text += "f p0 p1 p2 p3 p4 p5 p6 p7 p0\n";
+    let s = load_str(&text).unwrap();
+    assert!((s.total_area() - 7.0).abs() < 1e-6, "{}", s.total_area());
+    assert_eq!(s.num_triangles(), 6);
+    assert!(s.normals.iter().all(|n| n.z > 0.99));
+}
+
+/// Colours: ρ has luminance `rd`, emission = `ed` × colour / π, `cmix`, `cspec`, `cct`.
+#[test]
+fn colours_and_emission() {
+    let s = load_str(&format!(
+        "{QUAD}c red =\ncxy .45 .38\nm r =\nrd .4\nf a b c d\n\
+         c\nm lamp =\ned 100\nxf -t 0 0 1\nf d c b a\nxf\n\
+         c grey =\ncspec 400 700 1 1 1 1\nc warm =\ncct 3000\nc mix =\ncmix 1 red 1 grey\n\
+         m x =\nrd .2\nxf -t 0 0 2\nf a b c d\nxf\n"
+    ))
+    .unwrap();
+    let m = &s.materials;
+    let lum = |v: Vec3| 0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z;
+    assert!((lum(m[0].rho) - 0.4).abs() < 1e-4 && m[0].rho.x > m[0].rho.y);
+    assert!((m[1].emission - Vec3::splat(100.0 / std::f32::consts::PI)).length() < 1e-3);
+    assert!((luminance(s.emitted_power()) - 100.0).abs() < 1e-3);
+    assert!((lum(m[2].rho) - 0.2).abs() < 1e-4 && m[2].rho.x > m[2].rho.z);
+    let e = load_str(&format!("{QUAD}cmix 1 nothing\n"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nothing"), "{e}");
+}
+
+/// Primitives: tessellation counts and orientation (outwards).
+#[test]
+fn primitives() {
+    let s = load_str(&format!(
+        "{QUAD}v z =\np 0 0 3\nn 0 0 1\nsph a 1\ncyl a .5 z\ncone a .5 z 0\nring z .5 1\n\
+         torus z 1 2\nprism a b c d 2\n"
+    ))
+    .unwrap();
+    assert_eq!(s.num_triangles(), 224 + 32 + 16 + 32 + 512 + 12);
+    // The prism is the unit cube scaled to height 2: every face outwards.
+    let n = s.num_triangles();
+    for i in n - 12..n {
+        let c = s.tri_centroid(i) - Vec3::new(0.5, 0.5, 1.0);
+        assert!(s.normals[i].dot(c) > 0.0, "{i}");
+    }
+    // Ring faces its normal.
+    for i in 224 + 48..224 + 80 {
+        assert!(s.normals[i].z > 0.99);
+    }
+    assert!(load_str(&format!("{QUAD}ring a 0 1\n"))
+        .unwrap_err()
+        .to_string()
+        .contains("normal"));
+}
+
+/// Malformed input: errors with file and line; unknown entities warn and load.
+#[test]
+fn errors_and_warnings() {
+    let e = load_str("m w =\nrd .5\nv a =\np 0 x 0\n")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("t.mgf:4") && e.contains("bad number"), "{e}");
+    for (text, line, what) in [
+        (format!("{QUAD}f a b zz\n"), 11, "zz"),
+        (format!("{QUAD}m nope\n"), 11, "nope"),
+        (format!("{QUAD}xf -t 1 0 0\nf a b c\n"), 11, "xf"),
+        (format!("{QUAD}f a b c\nxf\n"), 12, "xf"),
+        (format!("{QUAD}xf -q 1\nxf\n"), 11, "-q"),
+        (format!("{QUAD}sph a\n"), 11, "arguments"),
+        (format!("{QUAD}rd 2\n"), 11, "rd"),
+        (format!("{QUAD}o\n"), 11, "'o'"),
+    ] {
+        let e = load_str(&text).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("t.mgf:{line}")) && e.contains(what),
+            "{text}: {e}"
+        );
+    }
+    // Unknown entities (mgflib: warn and skip), including the malformed lines of the set.
+    let s = load_str(&format!(
+        "{QUAD}0 0 0\nfrobnicate 1 2\n/usr/local/lib/ray/x.cal\nies x.ies\nrs .1 .05\nts .1 0\n\
+         f a b c d\n"
+    ))
+    .unwrap();
+    assert_eq!(s.num_triangles(), 2);
+}
+
+/// Objects: nested `o` paths, the file stem outside any `o`; backslash continuation; templates.
+#[test]
+fn objects_templates_continuations() {
+    let s = load_str(&format!(
+        "{QUAD}f a b c d\no outer\no inner\nf a b \\\n  c d\no\nv e = c\nf a b e\no\n"
+    ))
+    .unwrap();
+    assert_eq!(s.objects, vec!["t", "outer/inner", "outer"]);
+    assert_eq!(s.tri_object, vec![0, 0, 1, 1, 2]);
+    assert_eq!(s.up, hirad::scene::UpAxis::Z);
+}
+
+fn below(rng: &mut SplitMix64, n: usize) -> usize {
+    (rng.next_u64() % n.max(1) as u64) as usize
+}
+
+/// One mutation of `d`: a byte changed, a line dropped or doubled, a number made extreme.
+fn mutate(rng: &mut SplitMix64, data: &[u8]) -> Vec<u8> {
+    let mut d = data.to_vec();
+    if d.is_empty() {
+        return d;
+    }
+    let at = below(rng, d.len());
+    let line = |d: &[u8]| {
+        let s = d[..at]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |p| p + 1);
+        let e = d[at..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(d.len(), |p| at + p + 1);
+        (s, e)
+    };
+    match below(rng, 7) {
+        0 => d[at] = b"0123456789-. \n\\=x#"[below(rng, 18)],
+        1 => d[at] = (rng.next_u64() & 0xff) as u8,
+        2 => {
+            let (s, e) = line(&d);
+            d.drain(s..e);
+        }
+        3 => {
+            let (s, e) = line(&d);
+            let l = d[s..e].to_vec();
+            d.splice(s..s, l);
+        }
+        4 => {
+            let big: &[&[u8]] = &[b"1e30", b"-1", b"0", b"nan", b"4294967297", b"1e-30"];
+            if let Some(p) = d[at..].iter().position(|b| b.is_ascii_digit()) {
+                let s = at + p;
+                let e = d[s..]
+                    .iter()
+                    .position(|b| !(b.is_ascii_digit() || *b == b'.'))
+                    .map_or(d.len(), |q| s + q);
+                d.splice(s..e, big[below(rng, big.len())].iter().copied());
+            }
+        }
+        5 => d.truncate(at),
+        _ => {
+            let (s, e) = line(&d);
+            d.splice(s..e, b"xf -a 3 -t 0 0 1\n".iter().copied());
+        }
+    }
+    d
+}
+
+/// Every shared MGF file (cut to its first 200 lines, includes kept resolvable), truncated and
+/// mutated a few hundred times: loading returns Ok or Err, never panics.
+#[test]
+fn mutations_never_panic() {
+    let Some(src) = mgf_dir() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let mut list = Vec::new();
+    for sub in ["", "office1", "office2", "office3", "hospital", "Materials"] {
+        for e in std::fs::read_dir(src.join(sub)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "mgf") {
+                let text = std::fs::read_to_string(&p).unwrap();
+                let cut: String = text.lines().take(200).map(|l| format!("{l}\n")).collect();
+                let rel = Path::new(sub).join(p.file_name().unwrap());
+                let dst = tmp.path().join(&rel);
+                std::fs::create_dir_all(dst.parent().unwrap()).unwrap();
+                std::fs::write(&dst, &cut).unwrap();
+                list.push((dst, cut.into_bytes()));
+            }
+        }
+    }
+    list.sort();
+    let (mut cases, mut ok) = (0, 0);
+    for (k, (path, data)) in list.iter().enumerate() {
+        let mut rng = SplitMix64::for_item(0x3ad, k as u64);
+        for v in 0..14 {
+            let d = if v < 3 {
+                data[..below(&mut rng, data.len())].to_vec()
+            } else {
+                mutate(&mut rng, data)
+            };
+            std::fs::write(path, &d).unwrap();
+            let spec = path.to_str().unwrap().to_string();
+            let r = std::panic::catch_unwind(|| Scene::load(&spec, &SceneOptions::default()));
+            match r {
+                Ok(res) => ok += res.is_ok() as usize,
+                Err(_) => panic!("panic on variant {v} of {}", path.display()),
+            }
+            cases += 1;
+        }
+        std::fs::write(path, data).unwrap();
+    }
+    println!("{cases} variants of {} files, {ok} loaded", list.len());
+    assert!(cases >= 300, "{cases}");
+}
+
+/// A `.toml` scene description takes an `.mgf` mesh.
+#[test]
+fn toml_scene_takes_mgf_mesh() {
+    let dir = files(&[
+        ("q.mgf", &format!("{QUAD}f a b c d\n")),
+        ("s.toml", "name = \"s\"\n\n[[mesh]]\nfile = \"q.mgf\"\n"),
+    ]);
+    let s = load(&dir.path().join("s.toml"));
+    assert_eq!(s.num_triangles(), 2);
+}
