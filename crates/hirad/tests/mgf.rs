@@ -363,11 +363,28 @@ fn primitives() {
     ))
     .unwrap();
     assert_eq!(s.num_triangles(), 224 + 32 + 16 + 32 + 512 + 12);
-    // The prism is the unit cube scaled to height 2: every face outwards.
+    // The prism of a counter-clockwise square (normal +z) extends to z = −2, faces outwards.
     let n = s.num_triangles();
     for i in n - 12..n {
-        let c = s.tri_centroid(i) - Vec3::new(0.5, 0.5, 1.0);
+        let c = s.tri_centroid(i) - Vec3::new(0.5, 0.5, -1.0);
         assert!(s.normals[i].dot(c) > 0.0, "{i}");
+    }
+    assert_eq!(s.bbox.min.z, -2.0);
+    // The specification's example: a unit cube in the positive octant, faces outwards; a
+    // negative length puts it above the face (z ∈ [−1, 0]) facing inwards.
+    let cube = "v cv0 =\n\tp 0 0 0\nv cv1 =\n\tp 0 1 0\nv cv2 =\n\tp 1 1 0\nv cv3 =\n\tp 1 0 0\n";
+    for (len, sign) in [(1.0f32, 1.0f32), (-1.0, -1.0)] {
+        let s = load_str(&format!("{cube}prism cv0 cv1 cv2 cv3 {len}\n")).unwrap();
+        assert_eq!(s.num_triangles(), 12);
+        assert_eq!(s.bbox.min, Vec3::new(0.0, 0.0, len.min(0.0)));
+        assert_eq!(s.bbox.max, Vec3::new(1.0, 1.0, len.max(0.0)));
+        let centre = Vec3::new(0.5, 0.5, 0.5 * len);
+        for i in 0..12 {
+            assert!(
+                s.normals[i].dot(s.tri_centroid(i) - centre) * sign > 0.0,
+                "{len} {i}"
+            );
+        }
     }
     // Ring faces its normal.
     for i in 224 + 48..224 + 80 {
@@ -415,7 +432,7 @@ fn errors_and_warnings() {
 #[test]
 fn objects_templates_continuations() {
     let s = load_str(&format!(
-        "{QUAD}f a b c d\no outer\no inner\nf a b \\\n  c d\no\nv e = c\nf a b e\no\n"
+        "{QUAD}f a b c d\no outer\no inner\nf a b \\\n  c d\no\nv e = c\nv\np 5 5 5\nf a b e\no\n"
     ))
     .unwrap();
     assert_eq!(s.objects, vec!["t", "outer/inner", "outer"]);

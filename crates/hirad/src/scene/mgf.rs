@@ -817,12 +817,18 @@ impl Loader {
                 at.num(&w[2])?;
             }
             "v" => {
-                at.argc(w, (1..=3).contains(&n), "v name [= template]")?;
+                at.argc(w, n <= 3, "v [name [= template]]")?;
                 let fresh = Vert {
                     p: DVec3::ZERO,
                     n: DVec3::ZERO,
                     version: 0,
                 };
+                if n == 0 {
+                    // The unnamed vertex: never referenced by geometry, reset to the origin.
+                    self.verts.cur = 0;
+                    self.verts.items[0] = fresh;
+                    return Ok(());
+                }
                 let v = self.template(at, w, |l, name| l.verts.get(name).copied(), fresh)?;
                 match v {
                     Some(mut v) => {
@@ -1533,6 +1539,9 @@ fn torus(c: DVec3, n: DVec3, r0: f64, r1: f64, div: usize) -> Mesh {
     })
 }
 
+/// `prism`, as the MGF specification has it: the polygon keeps its orientation and is
+/// extruded opposite its (right-hand rule) normal, so with a positive length every face points
+/// outwards; with a negative length the prism lies above the polygon and faces inwards.
 fn prism(base: &[DVec3], len: f64) -> Option<Mesh> {
     let n = base.len();
     let tris = triangulate(&[base.to_vec()]);
@@ -1541,25 +1550,21 @@ fn prism(base: &[DVec3], len: f64) -> Option<Mesh> {
         normal += base[k].cross(base[(k + 1) % n]);
     }
     let normal = normal.try_normalize()?;
-    let d = normal * len;
+    let d = -normal * len;
     let mut points = base.to_vec();
     points.extend(base.iter().map(|&p| p + d));
     let n32 = n as u32;
     let mut out = Vec::new();
-    let rev = len > 0.0;
     for t in &tris {
         let t = t.map(|k| k as u32);
-        // The base faces away from the extrusion, the top towards it.
-        out.push(if rev { [t[0], t[2], t[1]] } else { t });
-        let t = t.map(|k| k + n32);
-        out.push(if rev { t } else { [t[0], t[2], t[1]] });
+        // The base as given, the opposite end its mirror image.
+        out.push(t);
+        out.push([t[0] + n32, t[2] + n32, t[1] + n32]);
     }
     for k in 0..n32 {
         let k1 = (k + 1) % n32;
-        let q = [[k, k1, k1 + n32], [k, k1 + n32, k + n32]];
-        for t in q {
-            out.push(if rev { t } else { [t[0], t[2], t[1]] });
-        }
+        out.push([k, k + n32, k1 + n32]);
+        out.push([k, k1 + n32, k1]);
     }
     Some(Mesh { points, tris: out })
 }
