@@ -307,6 +307,32 @@ fn sides_per_material() {
     assert!(e.contains(":11:"), "{e}");
 }
 
+/// The scene is two-sided (solved and path-traced with back faces, no `--two-sided` needed)
+/// when every non-emitting material is `sides 2`; a one-sided emitter does not change that, a
+/// one-sided reflector does.
+#[test]
+fn two_sided_scene_from_sides() {
+    assert!(load_str(&format!("{QUAD}f a b c d\n")).unwrap().two_sided);
+    let lamp = "m lamp =\nsides 1\ned 100\nf a c d\n";
+    assert!(
+        load_str(&format!("{QUAD}f a b c\n{lamp}"))
+            .unwrap()
+            .two_sided
+    );
+    let one = "m one =\nsides 1\nrd .3\nf a c d\n";
+    assert!(
+        !load_str(&format!("{QUAD}f a b c\n{one}"))
+            .unwrap()
+            .two_sided
+    );
+    // Built-in and OBJ scenes are one-sided unless asked.
+    assert!(
+        !Scene::load("cornell", &SceneOptions::default())
+            .unwrap()
+            .two_sided
+    );
+}
+
 /// A concave polygon (a U of area 3 × 3 − 2 = 7) is ear-clipped exactly; a repeated closing vertex is
 /// dropped.
 #[test]

@@ -110,6 +110,14 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             },
         ),
         (
+            "two-sided",
+            if s.two_sided {
+                "yes (the file gives every surface a back face)".into()
+            } else {
+                "no (--two-sided gives every surface a back face)".into()
+            },
+        ),
+        (
             "emitted power",
             format!(
                 "({:.6e}, {:.6e}, {:.6e}) W per RGB channel (scene units as metres)",

@@ -26,7 +26,8 @@ pub struct Args {
     /// Seed of the per-pixel generators.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Give every surface a diffuse back face (default: back faces are black and absorb).
+    /// Give every surface a diffuse back face (default: back faces are black and absorb;
+    /// implied by an MGF file whose non-emitting materials are all `sides 2`).
     #[arg(long)]
     pub two_sided: bool,
     /// Bounces before Russian roulette starts.
@@ -118,7 +119,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let ropts = ReferenceOptions {
         spp: a.spp,
         seed: a.seed,
-        two_sided: a.two_sided,
+        two_sided: a.two_sided || scene.two_sided,
         rr_depth: a.rr_depth,
         max_depth: a.max_depth,
     };

@@ -41,7 +41,8 @@ pub struct Args {
     /// preset's: fast 0.2, default 0.05, fine 0.0125, reference 0.003125].
     #[arg(long)]
     pub eps_rel: Option<f64>,
-    /// Give every surface a back face with its own radiosity.
+    /// Give every surface a back face with its own radiosity (implied by an MGF file whose
+    /// non-emitting materials are all `sides 2`, the MGF default).
     #[arg(long)]
     pub two_sided: bool,
     /// Visibility: rays, volume or none [default: rays].
@@ -158,10 +159,12 @@ impl Args {
 }
 
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
-    let cfg = args.config()?;
+    let mut cfg = args.config()?;
     let strategy = Strategy::parse(&args.clustering)?;
     let opts = args.reflectance.options(args.camera.scene_up());
     let scene = super::load_scene(&args.scene, &opts)?;
+    // A file whose surfaces all have back faces (MGF `sides 2`) is solved two-sided.
+    cfg.two_sided |= scene.two_sided;
     let t = Instant::now();
     let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
     let cluster_seconds = t.elapsed().as_secs_f64();

@@ -70,7 +70,8 @@ pub struct Args {
     /// Timed builds per strategy (median reported).
     #[arg(long, default_value_t = 5)]
     pub repeat: usize,
-    /// Surfaces with a back face (polygon soups with inconsistent winding).
+    /// Surfaces with a back face (polygon soups with inconsistent winding; implied by an MGF
+    /// file whose non-emitting materials are all `sides 2`).
     #[arg(long)]
     pub two_sided: bool,
     /// Output directory.

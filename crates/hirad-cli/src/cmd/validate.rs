@@ -33,7 +33,8 @@ pub struct Args {
     /// Clustering strategy of the solve.
     #[arg(long, default_value = "proxi")]
     pub clustering: String,
-    /// Two-sided surfaces, in the solve and in the path tracer.
+    /// Two-sided surfaces, in the solve and in the path tracer (implied by an MGF file whose
+    /// non-emitting materials are all `sides 2`).
     #[arg(long)]
     pub two_sided: bool,
     /// Paths per pixel of each reference.
@@ -81,6 +82,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         ..Default::default()
     };
     let scene = super::load_scene(&a.scene, &opts)?;
+    cfg.two_sided |= scene.two_sided;
     let view = a
         .camera
         .apply(CameraView::from_camera(&scene.default_camera()))?;

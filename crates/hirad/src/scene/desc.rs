@@ -160,6 +160,8 @@ pub fn load_raw(path: &Path) -> Result<RawScene> {
     };
     let mut mat_ids: HashMap<String, u32> = HashMap::new();
     let mut first_up = None;
+    // Two-sided when every mesh file says so (MGF `sides 2`).
+    raw.two_sided = !desc.mesh.is_empty();
     for m in &desc.mesh {
         let file = dir.join(m.file.get_ref());
         if !file.is_file() {
@@ -189,6 +191,7 @@ pub fn load_raw(path: &Path) -> Result<RawScene> {
             }
         };
         first_up.get_or_insert(part.up);
+        raw.two_sided &= part.two_sided;
         let scale = match m.scale {
             None => Vec3::ONE,
             Some(Scale::Uniform(s)) => Vec3::splat(s),

@@ -52,8 +52,7 @@ pub struct MgfScene {
 }
 
 impl MgfScene {
-    /// True when every material used is two-sided: the scene should be solved with
-    /// `--two-sided`.
+    /// True when every material used is two-sided.
     pub fn all_two_sided(&self) -> bool {
         self.two_sided.iter().all(|&t| t)
     }
@@ -88,12 +87,12 @@ pub fn load_with(path: &Path, divisions: usize) -> Result<MgfScene> {
         );
     }
     let two_sided = l.out_two_sided;
-    if !two_sided.is_empty() && two_sided.iter().all(|&t| t) {
-        tracing::info!(
-            "{}: every material is two-sided (MGF default): solve with --two-sided",
-            path.display()
-        );
-    }
+    // One-sided emitters (a lamp with `sides 1`) emit from their front in a two-sided solve too.
+    l.raw.two_sided = !two_sided.is_empty()
+        && two_sided
+            .iter()
+            .zip(&l.raw.materials)
+            .all(|(&t, m)| t || m.is_emitter());
     Ok(MgfScene {
         raw: l.raw,
         two_sided,

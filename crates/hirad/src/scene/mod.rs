@@ -115,6 +115,9 @@ pub struct RawScene {
     pub sky: Option<Vec3>,
     pub cameras: Vec<Camera>,
     pub up: UpAxis,
+    /// The file gives every non-emitting surface a back face (MGF `sides 2`): solves and
+    /// images are two-sided without `--two-sided`.
+    pub two_sided: bool,
 }
 
 /// Options applied while validating a raw scene.
@@ -156,6 +159,8 @@ pub struct Scene {
     pub sky: Option<Vec3>,
     pub cameras: Vec<Camera>,
     pub up: UpAxis,
+    /// Every non-emitting surface has a back face ([`RawScene::two_sided`]).
+    pub two_sided: bool,
     pub report: LoadReport,
 }
 
@@ -304,6 +309,7 @@ impl Scene {
             sky: raw.sky,
             cameras: raw.cameras,
             up: raw.up,
+            two_sided: raw.two_sided,
             report: LoadReport {
                 degenerate_dropped: degenerate,
                 clamped_materials: clamped,
@@ -424,6 +430,8 @@ pub struct SceneSummary {
     pub bbox_min: Vec3,
     pub bbox_max: Vec3,
     pub up: UpAxis,
+    /// The file gives every surface a back face ([`Scene::two_sided`]).
+    pub two_sided: bool,
     /// Emitted power Φ = Σ π·L_e·A per channel (surfaces only).
     pub emitted_power: [f64; 3],
     pub sun: Option<Sun>,
@@ -451,6 +459,7 @@ impl Scene {
             bbox_min: self.bbox.min,
             bbox_max: self.bbox.max,
             up: self.up,
+            two_sided: self.two_sided,
             emitted_power: self.emitted_power().to_array(),
             sun: self.sun,
             sky: self.sky,

@@ -362,11 +362,13 @@ fn ms(t: Instant) -> f64 {
 impl<'a> Study<'a> {
     /// Load the scene and prepare a study.
     pub fn new(
-        cfg: StudyConfig,
+        mut cfg: StudyConfig,
         progress: &'a dyn Progress,
         cancel: &'a AtomicBool,
     ) -> Result<Self> {
         let scene = Scene::load(&cfg.scene, &SceneOptions::default())?;
+        // A file whose surfaces all have back faces (MGF `sides 2`) is solved two-sided.
+        cfg.solver.two_sided |= scene.two_sided;
         let prims = Prims::from_scene(&scene);
         let views = viewpoints(&scene, &cfg)?;
         let lock = lock_dir(&cfg.out)?;

@@ -335,6 +335,7 @@ impl MeshBuilder {
             sky: None,
             cameras,
             up,
+            two_sided: false,
         }
     }
 }
