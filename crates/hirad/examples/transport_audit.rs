@@ -1433,7 +1433,8 @@ fn coverage(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol
     let n = o.samples;
     // Per chunk: weight by number of links carrying the pair (0, 1, 2, 3+), and of the
     // uncovered weight, by (receiver object, source object).
-    let parts: Vec<([f64; 4], [f64; 4], Vec<((usize, usize), f64)>)> = (0..n.div_ceil(CHUNK))
+    type Part = ([f64; 4], [f64; 4], Vec<((usize, usize), f64)>);
+    let parts: Vec<Part> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let mut rng = SplitMix64::new(c as u64 * 7919 + 3);
