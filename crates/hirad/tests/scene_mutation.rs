@@ -1,5 +1,6 @@
 //! No-panic fuzz-style test: truncated and randomly mutated copies of real OBJ scenes (a prefix
-//! of each, with its MTL), and of generated glTF, GLB, PLY (ASCII and binary) and TOML files,
+//! of each, with its MTL), of the shared MGF files (with their includes), and of generated
+//! glTF, GLB, PLY (ASCII and binary) and TOML files,
 //! go through `Scene::load`, which must return `Ok` or `Err` and never panic. Deterministic
 //! (SplitMix64, fixed seeds).
 
@@ -184,6 +185,56 @@ fn real_obj_prefixes_never_panic() {
         }
     }
     assert!(total >= 300, "{total}");
+}
+
+/// Every shared MGF file (its first 200 lines; includes still resolve), truncated and mutated,
+/// and with one line replaced by an `xf -a` array (MGF's own way to multiply work).
+#[test]
+fn real_mgf_files_never_panic() {
+    let src = real_dir("mgf");
+    if !src.is_dir() {
+        eprintln!("skipped: {} not found", src.display());
+        return;
+    }
+    let d = tempfile::tempdir().unwrap();
+    let mut list = Vec::new();
+    for sub in ["", "office1", "office2", "office3", "hospital", "Materials"] {
+        for e in std::fs::read_dir(src.join(sub)).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "mgf") {
+                let text = std::fs::read_to_string(&p).unwrap();
+                let cut: String = text.lines().take(200).map(|l| format!("{l}\n")).collect();
+                let rel = Path::new(sub).join(p.file_name().unwrap());
+                std::fs::create_dir_all(d.path().join(sub)).unwrap();
+                std::fs::write(d.path().join(&rel), &cut).unwrap();
+                list.push((rel.to_str().unwrap().to_string(), cut.into_bytes()));
+            }
+        }
+    }
+    list.sort();
+    let (mut total, mut loaded) = (0, 0);
+    for (k, (name, data)) in list.iter().enumerate() {
+        let (n, ok) = run_cases(d.path(), name, data, 0x3ad + k as u64, 3, 10);
+        let mut rng = SplitMix64::new(0x3ae + k as u64);
+        let lines: Vec<&[u8]> = data.split_inclusive(|&b| b == b'\n').collect();
+        let at = below(&mut rng, lines.len());
+        let mut arr: Vec<u8> = lines[..at].concat();
+        arr.extend_from_slice(b"xf -a 3 -t 0 0 1\n");
+        arr.extend(lines.get(at + 1..).unwrap_or_default().concat());
+        let p = d.path().join(name);
+        std::fs::write(&p, &arr).unwrap();
+        must_not_panic(&p, &format!("{name} with an xf array at line {}", at + 1));
+        // Restored: other files include it.
+        std::fs::write(&p, data).unwrap();
+        total += n + 1;
+        loaded += ok;
+    }
+    assert!(
+        list.len() >= 30 && total >= 400,
+        "{} files, {total} cases",
+        list.len()
+    );
+    assert!(loaded > 0 && loaded < total, "{loaded} of {total} loaded");
 }
 
 /// About `PREFIX` bytes of a real OBJ that still load: the first half from the start of the file

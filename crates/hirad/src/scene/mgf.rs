@@ -18,7 +18,9 @@
 //! emitted power Σ π·L_e·A equals Σ `ed`·A lumens. (The OBJ conversions in `shared/scenes`
 //! carry `Ke = ed × colour`, which this crate reads as radiance: π times brighter.) Specular
 //! and transmitted components (`rs`, `ts`, `td`) are ignored by the diffuse solver, with one
-//! warning per kind. `sides` is recorded per material ([`MgfScene::two_sided`]).
+//! warning per kind. `sides` is recorded per material ([`MgfScene::two_sided`]); a file whose
+//! non-emitting materials are all two-sided (the MGF default) makes a two-sided scene
+//! ([`RawScene::two_sided`]): solved and path-traced with back faces without `--two-sided`.
 //!
 //! Errors name the file and line. As mgflib does, an unknown entity (including malformed lines
 //! such as a bare `0 0 0` or a stray file path) is reported once per kind with a warning and
