@@ -152,6 +152,20 @@ fn validate_compares_the_solution_with_two_references() {
 }
 
 #[test]
+fn validate_from_a_view_that_sees_nothing_says_so() {
+    let o = hirad()
+        .args([
+            "validate", "cornell", "--size", "32x24", "--spp", "4", "--preset", "fast", "--eye",
+            "0,0,100", "--target", "0,0,200",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("reference") && err.contains("black"), "{err}");
+}
+
+#[test]
 fn info_table_prints_units() {
     let o = hirad().args(["info", "office"]).output().unwrap();
     assert!(o.status.success());

@@ -113,6 +113,14 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         render_reference(&scene, &caster, &view, &ro, &NoProgress).map(|(i, _)| i)
     };
     let r1 = reference(a.seed)?;
+    if r1.pixels.iter().all(|&p| luminance(p) <= 0.0) {
+        anyhow::bail!(
+            "the path-traced reference of {} is black from this view (eye {}): is the camera \
+             outside a closed room? Place it inside with --eye and --target",
+            a.scene,
+            view.eye
+        );
+    }
     let r2 = reference(a.seed.wrapping_add(1))?;
     let reference_seconds = t.elapsed().as_secs_f64();
     let e = compare(&img, &r1)?;
