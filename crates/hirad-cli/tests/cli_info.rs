@@ -1,5 +1,6 @@
 //! `hirad info` and `hirad scene` end to end: exit codes, error messages, JSON numbers.
 
+use std::path::Path;
 use std::process::Command;
 
 fn hirad() -> Command {
@@ -163,6 +164,35 @@ fn validate_from_a_view_that_sees_nothing_says_so() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("reference") && err.contains("black"), "{err}");
+}
+
+/// `--mgf-divisions` reaches the MGF loader: corridor.mgf's sphere, cylinders and torus are
+/// tessellated more coarsely with 1 division than with the default 4.
+#[test]
+fn mgf_divisions_set_the_tessellation() {
+    let f = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes/mgf/corridor.mgf");
+    if !f.is_file() {
+        eprintln!("skipped: {} not found", f.display());
+        return;
+    }
+    let tris = |extra: &[&str]| {
+        let v = json_ok(hirad().arg("--json").arg("info").arg(&f).args(extra));
+        v["triangles"].as_u64().unwrap()
+    };
+    let (coarse, default) = (tris(&["--mgf-divisions", "1"]), tris(&[]));
+    assert!(coarse < default, "{coarse} against {default}");
+    let o = hirad()
+        .arg("info")
+        .arg(&f)
+        .args(["--mgf-divisions", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 #[test]

@@ -21,12 +21,17 @@ impl LoadArgs {
     }
 }
 
-/// `--max-reflectance` alone, for commands whose `--up` is the camera flags' (`CameraArgs`).
+/// `--max-reflectance` and `--mgf-divisions`, for commands whose `--up` is the camera flags'
+/// (`CameraArgs`).
 #[derive(clap::Args, Debug, Clone)]
 pub struct ReflectanceArgs {
     /// Reflectance channels equal to 1 are clamped to this value.
     #[arg(long, default_value_t = 0.95)]
     pub max_reflectance: f32,
+    /// Quarter-circle divisions of the curved primitives of MGF files (sphere, cylinder, cone,
+    /// ring, torus), 1 to 64; 4 is RenderPark's default.
+    #[arg(long, default_value_t = hirad::scene::mgf::DEFAULT_DIVISIONS)]
+    pub mgf_divisions: usize,
 }
 
 impl ReflectanceArgs {
@@ -35,6 +40,7 @@ impl ReflectanceArgs {
         SceneOptions {
             max_reflectance: self.max_reflectance,
             up,
+            mgf_divisions: self.mgf_divisions,
         }
     }
 }

@@ -19,7 +19,6 @@ use hirad::render::{
     render_reference, render_solution, BackFaces, CameraView, Image, RasterOptions,
     ReferenceOptions,
 };
-use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -43,6 +42,8 @@ pub struct Args {
     /// Seed of the first reference (the second takes the next one).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[command(flatten)]
+    pub reflectance: super::info::ReflectanceArgs,
     #[command(flatten)]
     pub camera: CameraArgs,
 }
@@ -77,10 +78,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let mut cfg = SolverConfig::preset(&a.preset)?;
     cfg.two_sided |= a.two_sided;
     let strategy = Strategy::parse(&a.clustering)?;
-    let opts = SceneOptions {
-        up: a.camera.scene_up(),
-        ..Default::default()
-    };
+    let opts = a.reflectance.options(a.camera.scene_up());
     let scene = super::load_scene(&a.scene, &opts)?;
     cfg.two_sided |= scene.two_sided;
     let view = a

@@ -131,15 +131,16 @@ fn line_of(text: &str, offset: usize) -> usize {
 
 /// Load a TOML scene description and validate the combined scene.
 pub fn load(path: &Path, opts: &SceneOptions) -> Result<Scene> {
-    let mut raw = load_raw(path)?;
+    let mut raw = load_raw(path, opts.mgf_divisions)?;
     if let Some(up) = opts.up {
         raw.up = up;
     }
     Scene::from_raw(raw, opts)
 }
 
-/// Load a TOML scene description into raw (unvalidated) scene data.
-pub fn load_raw(path: &Path) -> Result<RawScene> {
+/// Load a TOML scene description into raw (unvalidated) scene data; MGF meshes are
+/// tessellated with `mgf_divisions` ([`super::mgf::load_with`]).
+pub fn load_raw(path: &Path, mgf_divisions: usize) -> Result<RawScene> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let desc: Desc = toml::from_str(&text).map_err(|e| match e.span() {
         Some(s) => Error::input_at(path, line_of(&text, s.start), e.message().to_string()),
@@ -179,7 +180,7 @@ pub fn load_raw(path: &Path) -> Result<RawScene> {
             "obj" => super::obj::load(&file)?,
             "gltf" | "glb" => super::gltf_io::load(&file)?,
             "ply" => super::ply::load(&file)?,
-            "mgf" => super::mgf::load(&file)?,
+            "mgf" => super::mgf::load_with(&file, mgf_divisions)?.raw,
             _ => {
                 return Err(at(
                     m.file.span(),

@@ -128,6 +128,13 @@ pub struct SceneOptions {
     /// Overrides the up axis a loader found in the file (`--up`).
     #[serde(default)]
     pub up: Option<UpAxis>,
+    /// Quarter-circle divisions of MGF's curved primitives (`--mgf-divisions`, 1..=64).
+    #[serde(default = "default_mgf_divisions")]
+    pub mgf_divisions: usize,
+}
+
+fn default_mgf_divisions() -> usize {
+    mgf::DEFAULT_DIVISIONS
 }
 
 impl Default for SceneOptions {
@@ -135,6 +142,7 @@ impl Default for SceneOptions {
         Self {
             max_reflectance: 0.95,
             up: None,
+            mgf_divisions: mgf::DEFAULT_DIVISIONS,
         }
     }
 }
@@ -500,7 +508,7 @@ fn load_any(spec: &str, opts: &SceneOptions) -> Result<Scene> {
         "obj" => obj::load(path)?,
         "gltf" | "glb" => gltf_io::load(path)?,
         "ply" => ply::load(path)?,
-        "mgf" => mgf::load(path)?,
+        "mgf" => mgf::load_with(path, opts.mgf_divisions)?.raw,
         "toml" => return desc::load(path, opts),
         _ => {
             return Err(Error::input(
