@@ -306,6 +306,22 @@ fn sides_per_material() {
     assert!(e.contains(":11:"), "{e}");
 }
 
+/// A material name defined again with other values stays a material of its own, also when a
+/// TOML scene merges the file's materials by name: only the lamp emits.
+#[test]
+fn redefined_material_names_stay_apart() {
+    let text = format!("{QUAD}f a b c\nm lamp =\ned 100\nf a c d\nm lamp =\nrd .4\nf a b d\n");
+    let dir = files(&[
+        ("t.mgf", &text),
+        ("s.toml", "name = \"s\"\n\n[[mesh]]\nfile = \"t.mgf\"\n"),
+    ]);
+    for f in ["t.mgf", "s.toml"] {
+        let s = load(&dir.path().join(f));
+        assert_eq!(s.materials.len(), 3, "{f}");
+        assert_eq!(s.emitters().len(), 1, "{f}");
+    }
+}
+
 /// The scene is two-sided (solved and path-traced with back faces, no `--two-sided` needed)
 /// when every non-emitting material is `sides 2`; a one-sided emitter does not change that, a
 /// one-sided reflector does.

@@ -1053,6 +1053,17 @@ impl Loader {
         let next = self.raw.materials.len() as u32;
         let i = *self.out_mats.entry(key).or_insert(next);
         if i == next {
+            // A name defined again with other values gets a suffix: materials are told apart
+            // by name downstream (TOML scenes merge meshes' materials by name).
+            let mut mat = mat;
+            let mut k = 1;
+            while self.raw.materials[..i as usize]
+                .iter()
+                .any(|o| o.name == mat.name)
+            {
+                k += 1;
+                mat.name = format!("{}#{k}", m.name);
+            }
             self.raw.materials.push(mat);
             self.out_two_sided.push(two);
         }
