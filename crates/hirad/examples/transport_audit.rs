@@ -537,10 +537,7 @@ fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &S
     let el = &sol.elements;
     // Points the solver leaves out (under a coplanar face or inside a solid) emit nothing.
     let covers = Covers::build(scene, tree, o.two_sided);
-    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
-    for t in 0..scene.num_triangles() {
-        by[scene.tri_object[t] as usize].push(t as u32);
-    }
+    let by = triangles_by_object(scene);
     // Per object: area, Σ A·B, fraction of points whose ray hits a back face, misses, and the
     // B-weighted fractions.
     let rows: Vec<(usize, f64, f64, f64, f64, f64, f64)> = by
@@ -614,6 +611,15 @@ fn shut(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &S
             r.2 * r.5
         );
     }
+}
+
+/// The triangles of each object.
+fn triangles_by_object(scene: &Scene) -> Vec<Vec<u32>> {
+    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+    for t in 0..scene.num_triangles() {
+        by[scene.tri_object[t] as usize].push(t as u32);
+    }
+    by
 }
 
 /// Root surface elements under element `id` (itself when a surface).
@@ -1537,10 +1543,7 @@ fn coverage(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol
 /// could reach it), as a mean over the shut points.
 fn shut_check(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster) {
     let masks = hirad::radiosity::shut::ShutMasks::build(scene, tree, false);
-    let mut by: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
-    for t in 0..scene.num_triangles() {
-        by[scene.tri_object[t] as usize].push(t as u32);
-    }
+    let by = triangles_by_object(scene);
     let rows: Vec<(usize, f64, f64, f64)> = by
         .par_iter()
         .enumerate()

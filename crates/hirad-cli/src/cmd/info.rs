@@ -11,7 +11,7 @@ pub struct LoadArgs {
     #[arg(long, value_parser = parse_up)]
     pub up: Option<UpAxis>,
     #[command(flatten)]
-    pub reflectance: ReflectanceArgs,
+    pub reflectance: SceneFileArgs,
 }
 
 impl LoadArgs {
@@ -24,7 +24,7 @@ impl LoadArgs {
 /// `--max-reflectance` and `--mgf-divisions`, for commands whose `--up` is the camera flags'
 /// (`CameraArgs`).
 #[derive(clap::Args, Debug, Clone)]
-pub struct ReflectanceArgs {
+pub struct SceneFileArgs {
     /// Reflectance channels equal to 1 are clamped to this value.
     #[arg(long, default_value_t = 0.95)]
     pub max_reflectance: f32,
@@ -34,7 +34,7 @@ pub struct ReflectanceArgs {
     pub mgf_divisions: usize,
 }
 
-impl ReflectanceArgs {
+impl SceneFileArgs {
     /// The library's scene options with up axis `up`.
     pub fn options(&self, up: Option<UpAxis>) -> SceneOptions {
         SceneOptions {

@@ -40,7 +40,7 @@ pub struct Args {
     #[arg(long, default_value = "sah")]
     pub clustering: String,
     #[command(flatten)]
-    pub reflectance: super::info::ReflectanceArgs,
+    pub reflectance: super::info::SceneFileArgs,
     /// Benchmark: also record the rays of a subset of rows (about 4 million rays), cast them
     /// again through the same caster and report the share of the render time that is ray
     /// casting. Writes no image unless `--image` is given.

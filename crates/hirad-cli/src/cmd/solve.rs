@@ -21,7 +21,7 @@ pub struct Args {
     /// Scene: a file path or a built-in name.
     pub scene: String,
     #[command(flatten)]
-    pub reflectance: super::info::ReflectanceArgs,
+    pub reflectance: super::info::SceneFileArgs,
     /// Viewpoint of the image (`--up y|z` also sets the scene's up axis).
     #[command(flatten)]
     pub camera: super::image_args::CameraArgs,

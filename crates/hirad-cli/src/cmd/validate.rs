@@ -43,7 +43,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     #[command(flatten)]
-    pub reflectance: super::info::ReflectanceArgs,
+    pub reflectance: super::info::SceneFileArgs,
     #[command(flatten)]
     pub camera: CameraArgs,
 }
