@@ -1,5 +1,6 @@
 //! Flags shared by every command that makes an image (`solve --image`, `render`, `reference`):
-//! camera overrides, output file and exposure, rasteriser options, and their parsers.
+//! camera overrides, output file and exposure, rasteriser and final-gather options, and their
+//! parsers.
 //!
 //! `--up` takes either an axis (`y` or `z`: the scene's up axis, which also becomes the camera's
 //! up vector) or a vector `x,y,z` (the camera's up vector only), so that one flag serves both
@@ -8,9 +9,18 @@
 
 use anyhow::Context;
 use glam::Vec3;
-use hirad::render::{BackFaces, CameraOverrides, CameraView, Image, RasterOptions};
+use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+use hirad::progress::Progress;
+use hirad::ray::RayCaster;
+use hirad::render::{
+    BackFaces, CameraOverrides, CameraView, GatherOptions, GatherStats, Gatherer, Image, Lookup,
+    RasterOptions, SolutionLookup,
+};
+use hirad::scene::export::ColoredMesh;
+use hirad::scene::Scene;
 use hirad::scene::UpAxis;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 
 /// The value of `--up`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -280,6 +290,96 @@ impl RasterArgs {
             back_faces: self.back_faces,
             ..Default::default()
         }
+    }
+}
+
+/// Final-gather flags (`render --gather`, `solve --gather`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct GatherArgs {
+    /// Final gather with N samples per pixel instead of the per-vertex image: per sample a camera
+    /// ray, an emitter sample with a shadow ray and a cosine-weighted gather ray that reads the
+    /// solution's radiosity (`render` needs --scene).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub gather: Option<u32>,
+    /// How gather rays read the solution: vertex (interpolated as the per-vertex image) or
+    /// element (the triangle's mean).
+    #[arg(long, default_value = "vertex", value_parser = parse_lookup)]
+    pub gather_lookup: Lookup,
+    /// Gather rays whose hit is closer than this (scene units) are shaded by one more bounce
+    /// instead of the solution [default: 0, never].
+    #[arg(long, default_value_t = 0.0, value_parser = parse_near)]
+    pub gather_near: f32,
+}
+
+fn parse_lookup(s: &str) -> Result<Lookup, String> {
+    Lookup::parse(s).map_err(|e| e.to_string())
+}
+
+fn parse_near(s: &str) -> Result<f32, String> {
+    s.trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|x| x.is_finite() && *x >= 0.0)
+        .ok_or_else(|| format!("gather near distance must be a number >= 0, got '{s}'"))
+}
+
+/// A gathered image and what it took.
+pub struct Gathered {
+    pub image: Image,
+    pub stats: GatherStats,
+    /// Seconds to build the scene's accelerator and match the solution to the scene.
+    pub prepare_seconds: f64,
+}
+
+impl GatherArgs {
+    /// Gather `rays` samples per pixel of the solution `mesh` of `scene` seen from `view`.
+    /// Two-sided when `two_sided`, the scene says so or the solution has back faces.
+    #[allow(clippy::too_many_arguments)]
+    pub fn gather(
+        &self,
+        rays: u32,
+        scene: &Scene,
+        mesh: &ColoredMesh,
+        view: &CameraView,
+        seed: u64,
+        two_sided: bool,
+        progress: &dyn Progress,
+        cancel: Option<&AtomicBool>,
+    ) -> anyhow::Result<Gathered> {
+        let t0 = std::time::Instant::now();
+        let tree = ClusterTree::build(scene, Strategy::Sah, &ClusterConfig::default());
+        let caster = RayCaster::new(scene, &tree);
+        let sol = SolutionLookup::new(mesh, scene, &caster, self.gather_lookup)?;
+        let prepare_seconds = t0.elapsed().as_secs_f64();
+        let opts = GatherOptions {
+            rays,
+            seed,
+            two_sided: two_sided || scene.two_sided || sol.has_back_faces(),
+            lookup: self.gather_lookup,
+            near: self.gather_near,
+        };
+        tracing::info!(
+            "gather: solution matched in {prepare_seconds:.2} s ({} front, {} back triangles, \
+             {} on no surface), two-sided {}",
+            sol.front,
+            sol.back,
+            sol.unmatched,
+            opts.two_sided
+        );
+        let (image, stats) =
+            Gatherer::new(scene, &caster, &sol, &opts).render(view, progress, cancel)?;
+        if stats.lookup_misses > 0 {
+            tracing::warn!(
+                "gather: {} of {} look-ups found no element of the solution (read as black)",
+                stats.lookup_misses,
+                stats.lookups
+            );
+        }
+        Ok(Gathered {
+            image,
+            stats,
+            prepare_seconds,
+        })
     }
 }
 

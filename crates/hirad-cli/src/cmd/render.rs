@@ -2,8 +2,13 @@
 //! mesh's vertex colours are radiosity B in W/m²; pixels are radiance B/π (so the image compares
 //! directly with `hirad reference`). The viewpoint is the default camera of `--scene` when given,
 //! else a view of the mesh's bounding box, overridden by the camera flags.
+//!
+//! `--gather N` (with `--scene`) makes the image by final gather instead
+//! (`hirad::render::gather`): exact direct light and shadows, indirect light read from the
+//! solution; two-sided when the solution has back faces or the scene is two-sided.
 
-use super::image_args::{CameraArgs, ImageArgs, RasterArgs};
+use super::image_args::{CameraArgs, GatherArgs, ImageArgs, RasterArgs};
+use crate::progress::Bars;
 use crate::Global;
 use hirad::geom::Aabb;
 use hirad::render::{render_solution, CameraView};
@@ -11,6 +16,8 @@ use hirad::scene::export::read_colored_mesh;
 use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -24,6 +31,14 @@ pub struct Args {
     #[command(flatten)]
     pub raster: RasterArgs,
     #[command(flatten)]
+    pub gather: GatherArgs,
+    /// Seed of the final gather's per-pixel generators.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Final gather: give every surface a diffuse back face even if the solution has none.
+    #[arg(long)]
+    pub two_sided: bool,
+    #[command(flatten)]
     pub out: ImageArgs,
 }
 
@@ -35,6 +50,13 @@ struct Report {
     width: u32,
     height: u32,
     supersample: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gather: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gather_stats: Option<hirad::render::GatherStats>,
+    /// Final gather: seconds to build the accelerator and match the solution to the scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prepare_seconds: Option<f64>,
     seconds: f64,
     mean_radiance: [f32; 3],
     images: Vec<String>,
@@ -42,14 +64,22 @@ struct Report {
 
 pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let mesh = read_colored_mesh(&a.solution)?;
+    if a.gather.gather.is_some() && a.scene.is_none() {
+        anyhow::bail!(hirad::Error::Config(
+            "--gather needs --scene: the scene the solution was solved from".into()
+        ));
+    }
+    let mut scene = None;
     let base = match &a.scene {
         Some(s) => {
             let opts = SceneOptions {
                 up: a.camera.scene_up(),
                 ..Default::default()
             };
-            let scene = super::load_scene(s, &opts)?;
-            CameraView::from_camera(&scene.default_camera())
+            let sc = super::load_scene(s, &opts)?;
+            let v = CameraView::from_camera(&sc.default_camera());
+            scene = Some(sc);
+            v
         }
         None => {
             let bbox = Aabb::from_points(mesh.positions.iter());
@@ -62,7 +92,36 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     };
     let view = a.camera.apply(base)?;
     let t0 = std::time::Instant::now();
-    let img = render_solution(&mesh, &view, &a.raster.options())?;
+    let (img, gather_stats, prepare_seconds) = match (a.gather.gather, &scene) {
+        (Some(n), Some(sc)) => {
+            let cancel = Arc::new(AtomicBool::new(false));
+            {
+                let c = cancel.clone();
+                let _ = ctrlc::set_handler(move || {
+                    if c.swap(true, Ordering::SeqCst) {
+                        std::process::exit(130);
+                    }
+                });
+            }
+            let bars = Bars::new(g.quiet || g.json);
+            let r = a.gather.gather(
+                n,
+                sc,
+                &mesh,
+                &view,
+                a.seed,
+                a.two_sided,
+                &bars,
+                Some(&cancel),
+            )?;
+            (r.image, Some(r.stats), Some(r.prepare_seconds))
+        }
+        _ => (
+            render_solution(&mesh, &view, &a.raster.options())?,
+            None,
+            None,
+        ),
+    };
     let seconds = t0.elapsed().as_secs_f64();
     let stem = a
         .solution
@@ -78,6 +137,9 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         width: view.width,
         height: view.height,
         supersample: a.raster.ss,
+        gather: a.gather.gather,
+        gather_stats,
+        prepare_seconds,
         seconds,
         mean_radiance: img.mean().to_array(),
         images: files.iter().map(|f| f.display().to_string()).collect(),
@@ -85,10 +147,16 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     if g.json {
         return super::print_json(&r);
     }
-    println!(
-        "{}: {} triangles, {}x{} ({}x{} samples) in {:.3} s",
-        r.solution, r.triangles, r.width, r.height, r.supersample, r.supersample, r.seconds
-    );
+    match r.gather {
+        Some(n) => println!(
+            "{}: {} triangles, {}x{} final gather {} samples per pixel in {:.3} s",
+            r.solution, r.triangles, r.width, r.height, n, r.seconds
+        ),
+        None => println!(
+            "{}: {} triangles, {}x{} ({}x{} samples) in {:.3} s",
+            r.solution, r.triangles, r.width, r.height, r.supersample, r.supersample, r.seconds
+        ),
+    }
     for f in &r.images {
         println!("wrote {f}");
     }

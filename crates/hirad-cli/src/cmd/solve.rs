@@ -95,6 +95,9 @@ pub struct Args {
     pub image: super::image_args::ImageArgs,
     #[command(flatten)]
     pub raster: super::image_args::RasterArgs,
+    /// Final gather of the image from the solution (`--gather N`; seeded by --seed).
+    #[command(flatten)]
+    pub gather: super::image_args::GatherArgs,
     /// Discontinuous per-element colours instead of the smooth mesh (vertex values fitted to
     /// the elements' means).
     #[arg(long)]
@@ -196,12 +199,30 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         let view = args.camera.apply(hirad::render::CameraView::from_camera(
             &scene.default_camera(),
         ))?;
-        let mut ropts = args.raster.options();
-        if cfg.two_sided {
-            // The solution mesh carries explicit back faces.
-            ropts.back_faces = hirad::render::BackFaces::Cull;
-        }
-        let img = hirad::render::render_solution(&mesh, &view, &ropts)?;
+        let img = match args.gather.gather {
+            Some(n) => {
+                args.gather
+                    .gather(
+                        n,
+                        &scene,
+                        &mesh,
+                        &view,
+                        cfg.seed,
+                        cfg.two_sided,
+                        progress,
+                        Some(&cancel),
+                    )?
+                    .image
+            }
+            None => {
+                let mut ropts = args.raster.options();
+                if cfg.two_sided {
+                    // The solution mesh carries explicit back faces.
+                    ropts.back_faces = hirad::render::BackFaces::Cull;
+                }
+                hirad::render::render_solution(&mesh, &view, &ropts)?
+            }
+        };
         let written = args.image.write(&img, &args.out, "image")?;
         files.images = written;
     }

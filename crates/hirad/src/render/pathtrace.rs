@@ -159,31 +159,31 @@ impl RayLog {
 
 /// Emitting triangles and the power distribution over them, sampled in constant time with
 /// Walker's alias method (Vose's construction).
-struct Lights {
+pub(crate) struct Lights {
     /// The emitting triangles, in the columns' order (what a light sample reads of them).
-    tris: Vec<LightTri>,
+    pub(crate) tris: Vec<LightTri>,
     /// Alias table: column `i` keeps `tris[i]` with probability `prob[i]`, else `tris[alias[i]]`.
     prob: Vec<f64>,
     alias: Vec<u32>,
     /// Probability density per unit area of choosing a point on each scene triangle
     /// (0 for non-emitters): `mean(L_e) / Σ A·mean(L_e)`.
-    pdf_area: Vec<f32>,
+    pub(crate) pdf_area: Vec<f32>,
 }
 
 /// What next-event estimation reads of an emitting triangle, in one record.
 #[derive(Clone, Copy, Debug)]
-struct LightTri {
-    a: Vec3,
-    b: Vec3,
-    c: Vec3,
-    normal: Vec3,
-    emission: Vec3,
+pub(crate) struct LightTri {
+    pub(crate) a: Vec3,
+    pub(crate) b: Vec3,
+    pub(crate) c: Vec3,
+    pub(crate) normal: Vec3,
+    pub(crate) emission: Vec3,
     /// Density per unit area of a point on this triangle (see `Lights::pdf_area`).
-    pdf_area: f32,
+    pub(crate) pdf_area: f32,
 }
 
 impl Lights {
-    fn new(scene: &Scene) -> Lights {
+    pub(crate) fn new(scene: &Scene) -> Lights {
         let ids = scene.emitters();
         let power: Vec<f64> = ids
             .iter()
@@ -229,7 +229,7 @@ impl Lights {
         }
     }
 
-    fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.tris.is_empty()
     }
 
@@ -237,7 +237,7 @@ impl Lights {
     /// uniform `u ∈ [0, 1)`: the integer part of `u·n` picks a column, the fraction decides
     /// between the column and its alias.
     #[inline]
-    fn pick(&self, u: f64) -> &LightTri {
+    pub(crate) fn pick(&self, u: f64) -> &LightTri {
         let n = self.tris.len();
         let x = u * n as f64;
         let i = (x as usize).min(n - 1);
@@ -281,7 +281,7 @@ fn mean(v: Vec3) -> f32 {
 
 /// Power heuristic (β = 2) weight of a sample of density `a` against one of density `b`.
 #[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 {
         a2 / (a2 + b2)
@@ -331,7 +331,7 @@ fn sin_cos_turn(u: f32) -> (f32, f32) {
 
 /// Cosine-weighted direction around unit `n`; returns (direction, cos θ).
 #[inline]
-fn cosine_sample(n: Vec3, u1: f32, u2: f32) -> (Vec3, f32) {
+pub(crate) fn cosine_sample(n: Vec3, u1: f32, u2: f32) -> (Vec3, f32) {
     let r = u1.sqrt();
     let (sin, cos_phi) = sin_cos_turn(u2);
     let (t, b) = basis(n);

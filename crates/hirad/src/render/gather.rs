@@ -1,0 +1,611 @@
+//! Final gather: images of a radiosity solution as sharp as a path tracer's, without its noise
+//! in indirect light (the two-pass method of RenderPark and its kind).
+//!
+//! Per pixel, `rays` samples, each: a camera ray jittered in the pixel (stratified) to the first
+//! hit in the scene; the emitted radiance there when the camera sees an emitter's front; direct
+//! light by the path tracer's emitter sampling (a triangle chosen by power, a point on it, both
+//! stratified) with an exact shadow ray, and the sun's shadow ray; indirect light from one
+//! cosine-weighted ray (the samples' directions stratified over the hemisphere) whose hit reads
+//! the solution's radiosity minus the emitted exitance there (direct light is not counted
+//! twice), times ρ/π. Emission that a gather ray hits is combined with the emitter sample by
+//! multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
+//! close to the shading point (corners) from spiking. Rays that leave the scene upwards see the
+//! sky. One-sided surfaces absorb at their back (the path tracer's convention) unless the
+//! solution is two-sided.
+//!
+//! The solution is the mesh `solve` writes (`solution.glb`: leaf elements with per-vertex
+//! radiosity B). [`SolutionLookup`] checks that its triangles lie on the scene's surfaces (one
+//! short ray per triangle, which also tells a two-sided solution by its back-face copies) and
+//! builds a ray accelerator over each half of it (split by the sign of the normal along a
+//! generic direction, so that coinciding triangles facing opposite ways never share one). A
+//! gather ray is cast against the scene (exact geometry and materials, as the path tracer's);
+//! its hit point then finds its element by a short ray along the normal of the side it was hit
+//! on, into the half of the mesh facing that way, and reads B
+//! interpolated from the vertices (what the per-vertex image shows) or the triangle's mean
+//! ([`Lookup`]). So a `.glb` and the scene are enough: nothing is solved again.
+//!
+//! Optionally ([`GatherOptions::near`]) a gather ray whose hit is closer than a distance is
+//! shaded by one more bounce (direct light and one gather ray) instead of the solution, where a
+//! coarse mesh is least accurate (corners).
+//!
+//! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`; rows are
+//! rendered in parallel and the image does not depend on the number of threads.
+
+use super::camera::{CameraFrame, CameraView};
+use super::image::Image;
+use super::pathtrace::{cosine_sample, power_heuristic, Lights};
+use crate::cluster::{ClusterConfig, ClusterTree, Strategy};
+use crate::progress::Progress;
+use crate::ray::RayCaster;
+use crate::rng::SplitMix64;
+use crate::scene::export::ColoredMesh;
+use crate::scene::{Material, RawScene, Scene, SceneOptions};
+use crate::{Error, Result};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::f32::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// How a gather ray reads the solution at its hit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Lookup {
+    /// Radiosity interpolated from the mesh's vertex values (as the per-vertex image).
+    #[default]
+    Vertex,
+    /// The mean of the hit triangle's vertex values (the element constant).
+    Element,
+}
+
+impl Lookup {
+    /// Parse `vertex` or `element`.
+    pub fn parse(s: &str) -> Result<Lookup> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "vertex" => Ok(Lookup::Vertex),
+            "element" => Ok(Lookup::Element),
+            _ => Err(Error::Config(format!(
+                "gather lookup: vertex or element, got '{s}'"
+            ))),
+        }
+    }
+}
+
+/// Settings of the final gather.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GatherOptions {
+    /// Samples per pixel: camera rays, light samples and gather rays (one each per sample).
+    pub rays: u32,
+    /// Seed of the per-pixel generators.
+    pub seed: u64,
+    /// Surfaces have a diffuse back face (the solution's back-face copies are read there).
+    pub two_sided: bool,
+    /// How a gather ray reads the solution.
+    pub lookup: Lookup,
+    /// Gather rays whose hit is closer than this (scene units) are shaded by one more bounce
+    /// instead of the solution; 0: never.
+    pub near: f32,
+}
+
+impl Default for GatherOptions {
+    fn default() -> Self {
+        Self {
+            rays: 64,
+            seed: 1,
+            two_sided: false,
+            lookup: Lookup::Vertex,
+            near: 0.0,
+        }
+    }
+}
+
+/// Counts and time of a gather.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct GatherStats {
+    /// Camera rays.
+    pub camera_rays: u64,
+    /// Gather rays (closest-hit queries from shading points).
+    pub gather_rays: u64,
+    /// Shadow rays (emitter samples and the sun).
+    pub shadow_rays: u64,
+    /// Solution look-ups (short rays into the solution mesh).
+    pub lookups: u64,
+    /// Look-ups that found no element (read as black).
+    pub lookup_misses: u64,
+    /// Wall time of the image, seconds (without preparing the solution).
+    pub seconds: f64,
+}
+
+/// Generic direction that splits the solution's triangles into two halves by the sign of
+/// `normal · SPLIT`: two coinciding triangles facing opposite ways (the back-face copies of
+/// two-sided solutions, or back-to-back surfaces) never share a half, so a look-up ray along a
+/// normal finds the element facing it. No axis-aligned or common normal is perpendicular to it.
+const SPLIT: Vec3 = Vec3::new(0.267_261_24, 0.534_522_5, 0.801_783_7);
+
+/// One half of the solution mesh, as a scene of its own with an accelerator.
+struct HalfMesh {
+    scene: Scene,
+    tree: ClusterTree,
+    /// Per triangle: the radiosity at its three vertices.
+    colors: Vec<[Vec3; 3]>,
+}
+
+/// A solution mesh (leaf elements with per-vertex radiosity B, W/m²) matched to its scene and
+/// prepared for look-ups by point.
+pub struct SolutionLookup {
+    /// Triangles whose normal has a positive (index 0) or negative (1) component along
+    /// [`SPLIT`].
+    halves: [Option<HalfMesh>; 2],
+    /// Half length of the look-up rays (scene units).
+    delta: f32,
+    /// Solution triangles on the front of a scene surface.
+    pub front: usize,
+    /// Solution triangles on the back of a scene surface only (back-face copies).
+    pub back: usize,
+    /// Solution triangles under which no scene surface was found.
+    pub unmatched: usize,
+    /// Solution triangles of zero area (left out).
+    pub degenerate: usize,
+}
+
+/// Offset of ray origins off a surface, as the path tracer's (scene units).
+fn surface_eps(scene: &Scene) -> f32 {
+    let diag = scene.bbox.extent().length();
+    let scale = diag
+        .max(scene.bbox.min.abs().max_element())
+        .max(scene.bbox.max.abs().max_element());
+    (scale * 2e-6).max(1e-7)
+}
+
+impl SolutionLookup {
+    /// Match the solution mesh `mesh` to `scene` (whose ray caster is `caster`) and build the
+    /// look-up structures. Fails when most of the mesh lies on no surface of the scene (a
+    /// solution of another scene).
+    pub fn new(
+        mesh: &ColoredMesh,
+        scene: &Scene,
+        caster: &RayCaster,
+        lookup: Lookup,
+    ) -> Result<Self> {
+        let nv = mesh.positions.len();
+        if mesh.colors.len() != nv {
+            return Err(Error::Config(format!(
+                "solution mesh has {} colours for {nv} vertices",
+                mesh.colors.len()
+            )));
+        }
+        if let Some(t) = mesh
+            .triangles
+            .iter()
+            .find(|t| t.iter().any(|&v| v as usize >= nv))
+        {
+            return Err(Error::Config(format!(
+                "solution triangle {t:?} uses a vertex out of range ({nv} vertices)"
+            )));
+        }
+        let delta = 5.0 * surface_eps(scene);
+        // Per triangle: 0 front of a scene surface, 1 back only, 2 degenerate, 3 on no surface.
+        let class: Vec<u8> = mesh
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+                let cr = (b - a).cross(c - a);
+                let area = 0.5 * cr.length();
+                if area.is_nan() || area <= 0.0 || !cr.normalize_or_zero().is_normalized() {
+                    return 2;
+                }
+                let n = cr.normalize();
+                let centroid = (a + b + c) / 3.0;
+                let facing_away = |tri: u32| scene.normals[tri as usize].dot(n) <= 0.0;
+                for k in [1.0f32, 20.0] {
+                    let o = centroid + n * (delta * k);
+                    let span = (0.0, 2.0 * delta * k);
+                    if caster.occluded_except(o, -n, span, &facing_away) {
+                        return 0;
+                    }
+                    if caster.occluded(o, -n, span.0, span.1) {
+                        return 1;
+                    }
+                }
+                3
+            })
+            .collect();
+        let count = |s: u8| class.iter().filter(|&&x| x == s).count();
+        let (front, back, degenerate, unmatched) = (count(0), count(1), count(2), count(3));
+        let good = mesh.triangles.len() - degenerate;
+        if good == 0 || unmatched * 2 > good {
+            return Err(Error::Config(format!(
+                "the solution does not fit the scene: {unmatched} of {good} solution triangles \
+                 lie on no surface of '{}'",
+                scene.name
+            )));
+        }
+        if unmatched > 0 {
+            tracing::warn!(
+                "gather: {unmatched} of {good} solution triangles lie on no surface of the scene"
+            );
+        }
+        let mut halves: [Option<HalfMesh>; 2] = [None, None];
+        for (h, slot) in halves.iter_mut().enumerate() {
+            let triangles: Vec<[u32; 3]> = mesh
+                .triangles
+                .iter()
+                .zip(&class)
+                .filter(|&(t, &c)| {
+                    if c == 2 {
+                        return false;
+                    }
+                    let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+                    ((b - a).cross(c - a).dot(SPLIT) > 0.0) == (h == 0)
+                })
+                .map(|(t, _)| *t)
+                .collect();
+            if triangles.is_empty() {
+                continue;
+            }
+            let colors: Vec<[Vec3; 3]> = triangles
+                .iter()
+                .map(|t| {
+                    let c = t.map(|v| mesh.colors[v as usize]);
+                    match lookup {
+                        Lookup::Vertex => c,
+                        Lookup::Element => [(c[0] + c[1] + c[2]) / 3.0; 3],
+                    }
+                })
+                .collect();
+            let n = triangles.len();
+            let raw = RawScene {
+                name: format!("{} solution half {h}", scene.name),
+                positions: mesh.positions.clone(),
+                triangles,
+                tri_material: vec![0; n],
+                tri_object: vec![0; n],
+                objects: Vec::new(),
+                materials: vec![Material::diffuse("solution", Vec3::ZERO)],
+                up: scene.up,
+                ..Default::default()
+            };
+            let sub = Scene::from_raw(raw, &SceneOptions::default())?;
+            if sub.num_triangles() != n {
+                return Err(Error::Config(format!(
+                    "solution half {h}: {} of {n} triangles kept",
+                    sub.num_triangles()
+                )));
+            }
+            let tree = ClusterTree::build(&sub, Strategy::Sah, &ClusterConfig::default());
+            *slot = Some(HalfMesh {
+                scene: sub,
+                tree,
+                colors,
+            });
+        }
+        Ok(SolutionLookup {
+            halves,
+            delta,
+            front,
+            back,
+            unmatched,
+            degenerate,
+        })
+    }
+
+    /// True when the solution has back-face elements (a two-sided solve): at least a quarter
+    /// of its triangles lie on the back of a scene surface only. (A one-sided solve has such
+    /// triangles only where the scene has back-to-back surfaces.)
+    pub fn has_back_faces(&self) -> bool {
+        self.back * 4 >= self.front + self.back
+    }
+}
+
+/// The final gather over a scene, its ray caster and a solution.
+pub struct Gatherer<'a> {
+    scene: &'a Scene,
+    caster: &'a RayCaster<'a>,
+    sol: &'a SolutionLookup,
+    half_casters: [Option<RayCaster<'a>>; 2],
+    opts: GatherOptions,
+    lights: Lights,
+    eps: f32,
+    up: Vec3,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Counts {
+    camera: u64,
+    gather: u64,
+    shadow: u64,
+    lookups: u64,
+    misses: u64,
+}
+
+/// `(i + jitter) / n` strata of a `a × b` grid for sample `k` (samples beyond the grid are
+/// uniform).
+#[inline]
+fn stratum(k: u32, a: u32, b: u32, rng: &mut SplitMix64) -> (f32, f32) {
+    let (r1, r2) = (rng.next_f32(), rng.next_f32());
+    if k < a * b {
+        (
+            ((k % a) as f32 + r1) / a as f32,
+            ((k / a) as f32 + r2) / b as f32,
+        )
+    } else {
+        (r1, r2)
+    }
+}
+
+impl<'a> Gatherer<'a> {
+    /// Prepare the light distribution and the solution's casters.
+    pub fn new(
+        scene: &'a Scene,
+        caster: &'a RayCaster<'a>,
+        sol: &'a SolutionLookup,
+        opts: &GatherOptions,
+    ) -> Self {
+        let half_casters = [0, 1].map(|h| {
+            sol.halves[h]
+                .as_ref()
+                .map(|m| RayCaster::new(&m.scene, &m.tree))
+        });
+        Gatherer {
+            scene,
+            caster,
+            sol,
+            half_casters,
+            opts: opts.clone(),
+            lights: Lights::new(scene),
+            eps: surface_eps(scene),
+            up: scene.up.vector(),
+        }
+    }
+
+    /// Radiosity B (W/m²) of the solution at point `q` of a surface, on the side whose normal
+    /// is `n`; `None` when no element is there.
+    fn radiosity(&self, q: Vec3, n: Vec3, cnt: &mut Counts) -> Option<Vec3> {
+        cnt.lookups += 1;
+        let h = if n.dot(SPLIT) > 0.0 { 0 } else { 1 };
+        let (Some(c), Some(m)) = (&self.half_casters[h], &self.sol.halves[h]) else {
+            cnt.misses += 1;
+            return None;
+        };
+        let d = self.sol.delta;
+        for k in [1.0f32, 20.0] {
+            if let Some(h) = c.closest(q + n * (d * k), -n, 0.0, 2.0 * d * k) {
+                let col = &m.colors[h.tri as usize];
+                return Some(col[0] * (1.0 - h.u - h.v) + col[1] * h.u + col[2] * h.v);
+            }
+        }
+        cnt.misses += 1;
+        None
+    }
+
+    /// Radiance reflected at `x` (already offset off the surface) of normal `n` and
+    /// reflectance `rho`: ρ/π × (direct irradiance from one emitter sample `ul` and the sun +
+    /// indirect irradiance from one cosine-weighted gather ray `ud`). `depth` 0 may shade close
+    /// hits by one more bounce ([`GatherOptions::near`]).
+    #[allow(clippy::too_many_arguments)]
+    fn reflected(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        rho: Vec3,
+        upick: f64,
+        ul: (f32, f32),
+        ud: (f32, f32),
+        depth: u32,
+        rng: &mut SplitMix64,
+        cnt: &mut Counts,
+    ) -> Vec3 {
+        let scene = self.scene;
+        let mut e = Vec3::ZERO; // irradiance estimate
+        if !self.lights.is_empty() {
+            let lt = self.lights.pick(upick);
+            let s = ul.0.sqrt();
+            let u2 = ul.1;
+            let y = lt.a * (1.0 - s) + lt.b * (s * (1.0 - u2)) + lt.c * (s * u2);
+            let to = y - x;
+            let dist2 = to.length_squared();
+            if dist2 > 0.0 {
+                let w = to / dist2.sqrt();
+                let cos_x = n.dot(w);
+                let cos_y = -lt.normal.dot(w);
+                if cos_x > 0.0 && cos_y > 0.0 {
+                    cnt.shadow += 1;
+                    if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4) {
+                        let pdf_light = lt.pdf_area * dist2 / cos_y;
+                        let w = power_heuristic(pdf_light, cos_x / PI);
+                        e += lt.emission * (cos_x * cos_y / (dist2 * lt.pdf_area) * w);
+                    }
+                }
+            }
+        }
+        if let Some(sun) = scene.sun {
+            let cos = n.dot(sun.direction);
+            if cos > 0.0 {
+                cnt.shadow += 1;
+                if !self.caster.occluded(x, sun.direction, 0.0, f32::INFINITY) {
+                    e += sun.irradiance * cos;
+                }
+            }
+        }
+        let mut out = rho * e / PI;
+        // Indirect: the cosine-weighted estimator of ρ/π ∫ L cos dω is ρ·L.
+        let (d, cos) = cosine_sample(n, ud.0, ud.1);
+        if cos <= 0.0 {
+            return out;
+        }
+        cnt.gather += 1;
+        let l_in = match self.caster.closest(x, d, 0.0, f32::INFINITY) {
+            None => match scene.sky {
+                Some(sky) if d.dot(self.up) > 0.0 => sky,
+                _ => Vec3::ZERO,
+            },
+            Some(h) => {
+                let tri = h.tri as usize;
+                let ng = scene.normals[tri];
+                let front = ng.dot(d) < 0.0;
+                if !front && !self.opts.two_sided {
+                    Vec3::ZERO
+                } else {
+                    let mat = scene.material_of(tri);
+                    let ns = if front { ng } else { -ng };
+                    let q = x + d * h.t;
+                    // Emission hit by the gather ray: its multiple-importance weight against
+                    // the emitter sample.
+                    let mut l = Vec3::ZERO;
+                    if front && mat.is_emitter() {
+                        let pdf_light = self.lights.pdf_area[tri] * h.t * h.t / -ng.dot(d);
+                        l += mat.emission * power_heuristic(cos / PI, pdf_light);
+                    }
+                    l + if depth == 0 && h.t < self.opts.near {
+                        if mat.rho.max_element() > 0.0 {
+                            let upick = rng.next_f64();
+                            let ul = (rng.next_f32(), rng.next_f32());
+                            let ud = (rng.next_f32(), rng.next_f32());
+                            let xq = q + ns * self.eps;
+                            self.reflected(xq, ns, mat.rho, upick, ul, ud, depth + 1, rng, cnt)
+                        } else {
+                            Vec3::ZERO
+                        }
+                    } else {
+                        match self.radiosity(q, ns, cnt) {
+                            Some(b) => {
+                                let emitted = if front { mat.emission * PI } else { Vec3::ZERO };
+                                (b - emitted).max(Vec3::ZERO) / PI
+                            }
+                            None => Vec3::ZERO,
+                        }
+                    }
+                }
+            }
+        };
+        out += rho * l_in;
+        out
+    }
+
+    /// Pixel `(x, y)` of an image `w` pixels wide.
+    fn pixel(&self, frame: &CameraFrame, x: usize, y: usize, w: usize, cnt: &mut Counts) -> Vec3 {
+        let scene = self.scene;
+        let mut rng = SplitMix64::for_item(self.opts.seed, (y * w + x) as u64);
+        let n = self.opts.rays;
+        let a = ((n as f64).sqrt() as u32).max(1);
+        let b = n / a;
+        // Independent shuffles of the strata of the pixel jitter, of the emitter choice and of
+        // the point on the emitter.
+        let mut perm_px: Vec<u32> = (0..n).collect();
+        let mut perm_l: Vec<u32> = (0..n).collect();
+        let mut perm_pick: Vec<u32> = (0..n).collect();
+        for p in [&mut perm_px, &mut perm_l, &mut perm_pick] {
+            for i in (1..n as usize).rev() {
+                let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+                p.swap(i, j);
+            }
+        }
+        let mut sum = DVec3::ZERO;
+        for k in 0..n {
+            let (jx, jy) = stratum(perm_px[k as usize], a, b, &mut rng);
+            let d = frame.direction(x as f32 + jx, y as f32 + jy).normalize();
+            let ul = stratum(perm_l[k as usize], a, b, &mut rng);
+            let upick = (perm_pick[k as usize] as f64 + rng.next_f64()) / n as f64;
+            let ud = stratum(k, a, b, &mut rng);
+            cnt.camera += 1;
+            let Some(h) = self.caster.closest(frame.eye, d, 0.0, f32::INFINITY) else {
+                continue;
+            };
+            let tri = h.tri as usize;
+            let ng = scene.normals[tri];
+            let front = ng.dot(d) < 0.0;
+            let mat = scene.material_of(tri);
+            let mut l = Vec3::ZERO;
+            if front {
+                l += mat.emission;
+            } else if !self.opts.two_sided {
+                continue;
+            }
+            if mat.rho.max_element() > 0.0 {
+                let ns = if front { ng } else { -ng };
+                let p = frame.eye + d * h.t + ns * self.eps;
+                l += self.reflected(p, ns, mat.rho, upick, ul, ud, 0, &mut rng, cnt);
+            }
+            sum += l.as_dvec3();
+        }
+        (sum / n as f64).as_vec3()
+    }
+
+    /// Render an image.
+    pub fn render(
+        &self,
+        view: &CameraView,
+        progress: &dyn Progress,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<(Image, GatherStats)> {
+        view.validate()?;
+        if self.opts.rays == 0 {
+            return Err(Error::Config("gather rays must be at least 1".into()));
+        }
+        if !(self.opts.near >= 0.0) {
+            return Err(Error::Config(format!(
+                "gather near distance {} must be >= 0",
+                self.opts.near
+            )));
+        }
+        let t0 = std::time::Instant::now();
+        let frame = view.frame();
+        let w = view.width as usize;
+        let mut img = Image::new(view.width, view.height, Vec3::ZERO);
+        progress.start("gather", view.height as u64);
+        let counts: Vec<Counts> = img
+            .pixels
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut cnt = Counts::default();
+                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return cnt;
+                }
+                for (x, px) in row.iter_mut().enumerate() {
+                    *px = self.pixel(&frame, x, y, w, &mut cnt);
+                }
+                progress.inc(1);
+                cnt
+            })
+            .collect();
+        progress.finish();
+        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            return Err(Error::Interrupted);
+        }
+        let sum = |f: fn(&Counts) -> u64| counts.iter().map(f).sum::<u64>();
+        let stats = GatherStats {
+            camera_rays: sum(|c| c.camera),
+            gather_rays: sum(|c| c.gather),
+            shadow_rays: sum(|c| c.shadow),
+            lookups: sum(|c| c.lookups),
+            lookup_misses: sum(|c| c.misses),
+            seconds: t0.elapsed().as_secs_f64(),
+        };
+        tracing::info!(
+            "gather: {} camera rays, {} gather rays, {} shadow rays, {} look-ups ({} missed) in \
+             {:.2} s",
+            stats.camera_rays,
+            stats.gather_rays,
+            stats.shadow_rays,
+            stats.lookups,
+            stats.lookup_misses,
+            stats.seconds
+        );
+        Ok((img, stats))
+    }
+}
+
+/// Match `mesh` to `scene`, then gather an image of it from `view`.
+pub fn render_gather(
+    scene: &Scene,
+    caster: &RayCaster,
+    mesh: &ColoredMesh,
+    view: &CameraView,
+    opts: &GatherOptions,
+    progress: &dyn Progress,
+    cancel: Option<&AtomicBool>,
+) -> Result<(Image, GatherStats)> {
+    let sol = SolutionLookup::new(mesh, scene, caster, opts.lookup)?;
+    Gatherer::new(scene, caster, &sol, opts).render(view, progress, cancel)
+}
