@@ -46,6 +46,82 @@ fn solve_image_takes_the_camera_flags() {
     assert_ne!(Image::read(&dflt).unwrap().pixels, img.pixels);
 }
 
+/// `solve --gather N` with camera flags writes the image `render SOLUTION.glb --scene S --gather
+/// N` makes with the same flags and seed (the glb holds all the gather needs), whatever the
+/// thread count; the camera flags are one definition shared by `solve`, `render` and
+/// `reference` (the same flags give the same size); `render --gather` without `--scene` is
+/// refused.
+#[test]
+fn solve_gather_equals_render_gather_with_the_same_flags() {
+    let d = tempfile::tempdir().unwrap();
+    let cam = [
+        "--eye",
+        "0.2,0.3,-0.5",
+        "--target",
+        "0.3,0.2,0.3",
+        "--up",
+        "0,1,0",
+        "--fov",
+        "50",
+        "--size",
+        "40x30",
+    ];
+    let out = d.path().join("s");
+    ok(hirad()
+        .args([
+            "-q",
+            "--threads",
+            "2",
+            "solve",
+            "cornell",
+            "--preset",
+            "fast",
+            "--seed",
+            "5",
+        ])
+        .args(["--gather", "8", "--out"])
+        .arg(&out)
+        .args(cam));
+    let img = Image::read(&out.join("image.exr")).unwrap();
+    assert_eq!((img.width, img.height), (40, 30));
+    assert!(img.mean().x > 0.0);
+    let r = d.path().join("r.exr");
+    ok(hirad()
+        .args(["-q", "--threads", "1", "render"])
+        .arg(out.join("solution.glb"))
+        .args([
+            "--scene", "cornell", "--gather", "8", "--seed", "5", "--image",
+        ])
+        .arg(&r)
+        .args(cam));
+    assert_eq!(Image::read(&r).unwrap().pixels, img.pixels);
+    // Another seed: another image; the per-vertex image is another one too.
+    let r2 = d.path().join("r2.exr");
+    ok(hirad()
+        .args(["-q", "render"])
+        .arg(out.join("solution.glb"))
+        .args([
+            "--scene", "cornell", "--gather", "8", "--seed", "6", "--image",
+        ])
+        .arg(&r2)
+        .args(cam));
+    assert_ne!(Image::read(&r2).unwrap().pixels, img.pixels);
+    let p = d.path().join("p.exr");
+    ok(hirad()
+        .args(["-q", "reference", "cornell", "--spp", "1", "--image"])
+        .arg(&p)
+        .args(cam));
+    assert_eq!(Image::read(&p).unwrap().width, 40);
+    let o = hirad()
+        .args(["-q", "render"])
+        .arg(out.join("solution.glb"))
+        .args(["--gather", "8"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--gather needs --scene"));
+}
+
 /// Choices parse in any case; `solve --clustering all` is refused with a list that does not
 /// offer `all` (exit 2: a usage error), while `clusters --clustering all` takes it.
 #[test]
