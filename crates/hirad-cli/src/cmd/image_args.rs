@@ -301,26 +301,27 @@ pub struct GatherArgs {
     /// solution's radiosity (`render` needs --scene).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub gather: Option<u32>,
-    /// How gather rays read the solution: vertex (interpolated as the per-vertex image) or
-    /// element (the triangle's mean).
-    #[arg(long, default_value = "vertex", value_parser = parse_lookup)]
+    /// How gather rays read the solution: element (the triangle's mean) or vertex (interpolated
+    /// as the per-vertex image).
+    #[arg(long, default_value = "element", value_parser = parse_lookup)]
     pub gather_lookup: Lookup,
-    /// Gather rays whose hit is closer than this (scene units) are shaded by one more bounce
-    /// instead of the solution [default: 0, never].
-    #[arg(long, default_value_t = 0.0, value_parser = parse_near)]
-    pub gather_near: f32,
+    /// Importance to bright elements: solution triangles whose reflected radiosity is above
+    /// this multiple of the area-weighted mean are also sampled by area, combined with the
+    /// gather rays by multiple importance sampling (0: off).
+    #[arg(long, default_value_t = 16.0, value_parser = parse_factor)]
+    pub gather_bright: f32,
 }
 
 fn parse_lookup(s: &str) -> Result<Lookup, String> {
     Lookup::parse(s).map_err(|e| e.to_string())
 }
 
-fn parse_near(s: &str) -> Result<f32, String> {
+fn parse_factor(s: &str) -> Result<f32, String> {
     s.trim()
         .parse::<f32>()
         .ok()
         .filter(|x| x.is_finite() && *x >= 0.0)
-        .ok_or_else(|| format!("gather near distance must be a number >= 0, got '{s}'"))
+        .ok_or_else(|| format!("expected a number >= 0, got '{s}'"))
 }
 
 /// A gathered image and what it took.
@@ -356,7 +357,7 @@ impl GatherArgs {
             seed,
             two_sided: two_sided || scene.two_sided || sol.has_back_faces(),
             lookup: self.gather_lookup,
-            near: self.gather_near,
+            bright: self.gather_bright,
         };
         tracing::info!(
             "gather: solution matched in {prepare_seconds:.2} s ({} front, {} back triangles, \

@@ -252,7 +252,7 @@ impl Lights {
 /// Vose's alias table of the weights `w` (sum `total` > 0): `(prob, alias)` such that choosing
 /// column `i` uniformly, then `i` with probability `prob[i]` and `alias[i]` otherwise, picks `j`
 /// with probability `w[j] / total`.
-fn alias_table(w: &[f64], total: f64) -> (Vec<f64>, Vec<u32>) {
+pub(crate) fn alias_table(w: &[f64], total: f64) -> (Vec<f64>, Vec<u32>) {
     let n = w.len();
     let mut prob: Vec<f64> = w.iter().map(|&x| x * n as f64 / total).collect();
     let mut alias: Vec<u32> = (0..n as u32).collect();
