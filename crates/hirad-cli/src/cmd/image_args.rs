@@ -298,7 +298,7 @@ impl RasterArgs {
 pub struct GatherArgs {
     /// Final gather with N samples per pixel instead of the per-vertex image: per sample a camera
     /// ray, an emitter sample with a shadow ray and a cosine-weighted gather ray that reads the
-    /// solution's radiosity (`render` needs --scene).
+    /// solution's radiosity (`render` needs --scene) [default: none, the per-vertex image].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub gather: Option<u32>,
     /// How gather rays read the solution: element (the triangle's mean) or vertex (interpolated
@@ -369,7 +369,8 @@ impl GatherArgs {
         );
         let (image, stats) =
             Gatherer::new(scene, &caster, &sol, &opts).render(view, progress, cancel)?;
-        if stats.lookup_misses > 0 {
+        // A look-up can miss at a crack of the leaf mesh (1 in 4.6 million on the office).
+        if stats.lookup_misses as f64 > 1e-4 * stats.lookups as f64 {
             tracing::warn!(
                 "gather: {} of {} look-ups found no element of the solution (read as black)",
                 stats.lookup_misses,

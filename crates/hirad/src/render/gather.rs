@@ -384,7 +384,7 @@ impl Bright {
             }
         }
         let total: f64 = power.iter().sum();
-        if ids.is_empty() || !(total > 0.0) {
+        if ids.is_empty() || total.is_nan() || total <= 0.0 {
             return None;
         }
         let mut pdf_area = [vec![0.0f32; per[0].len()], vec![0.0f32; per[1].len()]];
@@ -716,7 +716,7 @@ impl<'a> Gatherer<'a> {
         if self.opts.rays == 0 {
             return Err(Error::Config("gather rays must be at least 1".into()));
         }
-        if !(self.opts.bright >= 0.0) {
+        if self.opts.bright.is_nan() || self.opts.bright < 0.0 {
             return Err(Error::Config(format!(
                 "gather bright factor {} must be >= 0",
                 self.opts.bright
