@@ -34,7 +34,8 @@ const EXAMPLES: &str = "Examples:
   hirad info ../shared/scenes/bathroom/bathroom.obj --json
   hirad scene cornell --out cornell.obj      write a built-in scene to a file
   hirad clusters office --clustering all     statistics of every clustering strategy
-  hirad raybench soup --clustering all --pairs 100000 --seed 1";
+  hirad raybench soup --clustering all --pairs 100000 --seed 1
+  hirad view out/solution.glb                out/viewer.html: the solution in a browser";
 
 /// Options every subcommand takes.
 #[derive(clap::Args, Debug, Clone)]
@@ -75,6 +76,8 @@ enum Command {
     Study(cmd::study::Args),
     /// Solve, render from the view and compare with two path-traced references.
     Validate(cmd::validate::Args),
+    /// Write a self-contained HTML viewer (WebGL2) of a solution glb.
+    View(cmd::view::Args),
 }
 
 fn main() {
@@ -101,6 +104,7 @@ fn main() {
         Command::Reference(a) => cmd::reference::run(a, &cli.global),
         Command::Validate(a) => cmd::validate::run(a, &cli.global),
         Command::Study(a) => cmd::study::run(a, &cli.global),
+        Command::View(a) => cmd::view::run(a, &cli.global),
     };
     if let Err(e) = r {
         eprintln!("error: {e:#}");

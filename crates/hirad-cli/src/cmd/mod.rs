@@ -11,6 +11,7 @@ pub mod scene;
 pub mod solve;
 pub mod study;
 pub mod validate;
+pub mod view;
 
 use hirad::scene::{Scene, SceneOptions};
 

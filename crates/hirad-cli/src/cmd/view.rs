@@ -1,0 +1,95 @@
+//! `hirad view SOLUTION.glb`: one self-contained HTML file that shows a baked solution in a
+//! browser (WebGL2). The glb is embedded as base64 and parsed by the page's own script, so the
+//! file can be mailed or opened offline: nothing is fetched at view time. The page draws
+//! radiance B/π (`_RADIOSITY`, else `COLOR_0`) × 2^exposure, linear → sRGB in the shader, with
+//! orbit and walk cameras and the glb's cameras as presets (template: `view.html`).
+
+use super::image_args::{parse_exposure, Exposure};
+use crate::Global;
+use hirad::Error;
+use std::path::{Path, PathBuf};
+
+/// The page; `/*HIRAD_CONFIG*/null` is replaced by the settings, `HIRAD_GLB_BASE64` by the glb.
+const TEMPLATE: &str = include_str!("view.html");
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Solution to show: a `.glb` (as `hirad solve` writes it; any triangle glb works).
+    pub solution: PathBuf,
+    /// Output HTML file [default: viewer.html next to SOLUTION].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Initial exposure in stops (radiance × 2^exposure before the sRGB transfer and clamping,
+    /// as `hirad render --exposure`), or `auto`: the 99th percentile of vertex luminance maps
+    /// to 1. Changed in the page with the slider or the +/- keys.
+    #[arg(long, default_value = "0", value_parser = parse_exposure, allow_hyphen_values = true)]
+    pub exposure: Exposure,
+    /// Up axis of the model's coordinates: `y` (glTF's convention) or `z` (hirad solutions of
+    /// Z-up scenes keep the scene's coordinates). Also switchable in the page.
+    #[arg(long, default_value = "y", value_parser = ["y", "z"], ignore_case = true)]
+    pub up: String,
+}
+
+pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
+    let glb = std::fs::read(&a.solution).map_err(|e| Error::io(&a.solution, e))?;
+    check_glb(&a.solution, &glb)?;
+    let out = a.out.clone().unwrap_or_else(|| {
+        a.solution
+            .parent()
+            .unwrap_or(Path::new(""))
+            .join("viewer.html")
+    });
+    let name = a
+        .solution
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let config = serde_json::json!({
+        "name": name,
+        "exposure": match a.exposure {
+            Exposure::Stops(s) => serde_json::json!(s),
+            Exposure::Auto => serde_json::json!("auto"),
+        },
+        "up": a.up.to_ascii_lowercase(),
+    });
+    // `</` cannot end the script element early when written as `<\/`.
+    let config = serde_json::to_string(&config)?.replace("</", "<\\/");
+    // The glb last: its base64 cannot hold the config's marker (no `*`).
+    let html = TEMPLATE
+        .replacen("/*HIRAD_CONFIG*/null", &config, 1)
+        .replacen("HIRAD_GLB_BASE64", &base64::encode(&glb), 1);
+    hirad::io::write_bytes_atomic(&out, html.as_bytes())?;
+    tracing::info!("wrote {} ({} bytes)", out.display(), html.len());
+    if !_g.quiet {
+        println!("{}", out.display());
+    }
+    Ok(())
+}
+
+/// The GLB container's header and chunk layout (what the page's parser relies on).
+fn check_glb(path: &Path, b: &[u8]) -> hirad::Result<()> {
+    let bad = |msg: &str| Error::input(path, format!("not a binary glTF (.glb): {msg}"));
+    let u32_at = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as usize;
+    if b.len() < 20 || &b[0..4] != b"glTF" {
+        return Err(bad("no 'glTF' header"));
+    }
+    if u32_at(4) != 2 {
+        return Err(bad(&format!("container version {}, expected 2", u32_at(4))));
+    }
+    if u32_at(8) > b.len() {
+        return Err(bad("truncated"));
+    }
+    if &b[16..20] != b"JSON" || 20 + u32_at(12) > b.len() {
+        return Err(bad("the first chunk is not a complete JSON chunk"));
+    }
+    let json: serde_json::Value = serde_json::from_slice(&b[20..20 + u32_at(12)])
+        .map_err(|e| bad(&format!("JSON chunk: {e}")))?;
+    if json
+        .get("meshes")
+        .and_then(|m| m.as_array())
+        .is_none_or(|m| m.is_empty())
+    {
+        return Err(bad("no meshes"));
+    }
+    Ok(())
+}
