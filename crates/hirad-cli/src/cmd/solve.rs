@@ -79,7 +79,8 @@ pub struct Args {
     /// from their normals) or isotropic (the paper's Φ/4π with projected area ΣA/4).
     #[arg(long)]
     pub cluster_emission: Option<String>,
-    /// Seed of the random choices [default: 1].
+    /// Seed of the random choices, and of the final gather's per-pixel generators (`--gather`)
+    /// [default: 1].
     #[arg(long)]
     pub seed: Option<u64>,
     /// Volume visibility: a cluster smaller than this × the segment length is used as a
