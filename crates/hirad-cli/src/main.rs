@@ -35,7 +35,7 @@ const EXAMPLES: &str = "Examples:
   hirad scene cornell --out cornell.obj      write a built-in scene to a file
   hirad clusters office --clustering all     statistics of every clustering strategy
   hirad raybench soup --clustering all --pairs 100000 --seed 1
-  hirad view out/solution.glb                out/viewer.html: the solution in a browser";
+  hirad view out/solution.glb --scene office  out/viewer.html: the solution in a browser";
 
 /// Options every subcommand takes.
 #[derive(clap::Args, Debug, Clone)]

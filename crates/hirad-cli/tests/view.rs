@@ -102,20 +102,11 @@ fn browser() -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
-#[test]
-fn view_draws_the_model_in_headless_chromium() {
-    let Some(chrome) = browser() else {
-        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
-        return;
-    };
-    let d = tempfile::tempdir().unwrap();
-    let glb = solve_cornell(d.path());
-    let r = hirad().args(["-q", "view"]).arg(&glb).output().unwrap();
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let page = d.path().join("viewer.html").canonicalize().unwrap();
-    let png = Path::new(env!("CARGO_TARGET_TMPDIR")).join("view_screenshot.png");
-    let _ = std::fs::remove_file(&png);
-    let mut child = Command::new(&chrome)
+/// Screenshot of `page` (with `#flags`) at 640×480 by a headless Chromium into `png`; fails
+/// on a page error in the browser's log.
+fn screenshot(chrome: &Path, page: &Path, flags: &str, png: &Path, profile: &Path) {
+    let _ = std::fs::remove_file(png);
+    let mut child = Command::new(chrome)
         .args([
             "--headless=new",
             "--no-sandbox",
@@ -125,12 +116,12 @@ fn view_draws_the_model_in_headless_chromium() {
             "--enable-logging=stderr",
             "--window-size=640,480",
         ])
-        .arg(format!(
-            "--user-data-dir={}",
-            d.path().join("profile").display()
-        ))
+        .arg(format!("--user-data-dir={}", profile.display()))
         .arg(format!("--screenshot={}", png.display()))
-        .arg(format!("file://{}", page.display()))
+        .arg(format!(
+            "file://{}{flags}",
+            page.canonicalize().unwrap().display()
+        ))
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -156,10 +147,25 @@ fn view_draws_the_model_in_headless_chromium() {
         assert!(!log.contains(bad), "page error in the browser log:\n{log}");
     }
     eprintln!("screenshot: {}", png.display());
+}
+
+#[test]
+fn view_draws_the_model_in_headless_chromium() {
+    let Some(chrome) = browser() else {
+        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let glb = solve_cornell(d.path());
+    let r = hirad().args(["-q", "view"]).arg(&glb).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let png = Path::new(env!("CARGO_TARGET_TMPDIR")).join("view_screenshot.png");
+    let page = d.path().join("viewer.html");
+    screenshot(&chrome, &page, "", &png, &d.path().join("profile"));
     let img = image::open(&png).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (640, 480));
     // Below the overlay (top left), the model: many colours, not only the background.
-    let background = image::Rgb([32u8, 32, 32]);
+    let background = image::Rgb([0u8, 0, 0]);
     let lower: Vec<_> = img
         .enumerate_pixels()
         .filter(|p| p.1 >= 200)
@@ -174,5 +180,60 @@ fn view_draws_the_model_in_headless_chromium() {
         "{model} of {} pixels drawn, {} colours",
         lower.len(),
         distinct.len()
+    );
+}
+
+/// `view --scene` opens at the scene's default camera; without overlay and antialiasing
+/// (`#noui&noaa`) the page shows what `hirad render --ss 1` draws of the same view and size:
+/// RMS ΔE*uv ≤ 3 (`hirad diff`, after sRGB decoding).
+#[test]
+fn view_at_the_scene_camera_matches_render() {
+    let Some(chrome) = browser() else {
+        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let glb = solve_cornell(d.path());
+    let r = hirad()
+        .args(["-q", "view", "--scene", "cornell"])
+        .arg(&glb)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    let shot = tmp.join("view_scene_camera.png");
+    let page = d.path().join("viewer.html");
+    screenshot(
+        &chrome,
+        &page,
+        "#noui&noaa",
+        &shot,
+        &d.path().join("profile"),
+    );
+    let rendered = tmp.join("view_scene_camera_render.png");
+    let r = hirad()
+        .args([
+            "-q", "render", "--scene", "cornell", "--ss", "1", "--size", "640x480",
+        ])
+        .arg(&glb)
+        .arg("--image")
+        .arg(&rendered)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let r = hirad()
+        .args(["--json", "diff"])
+        .arg(&shot)
+        .arg(&rendered)
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let rms = v["rms_delta_e"].as_f64().unwrap();
+    eprintln!("viewer vs render: RMS ΔE*uv {rms:.3}");
+    assert!(rms <= 3.0, "RMS ΔE*uv {rms} between the page and render");
+    assert!(
+        (v["mean_luminance_ratio"].as_f64().unwrap() - 1.0).abs() < 0.02,
+        "{v}"
     );
 }

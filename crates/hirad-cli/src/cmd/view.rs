@@ -1,11 +1,14 @@
 //! `hirad view SOLUTION.glb`: one self-contained HTML file that shows a baked solution in a
 //! browser (WebGL2). The glb is embedded as base64 and parsed by the page's own script, so the
 //! file can be mailed or opened offline: nothing is fetched at view time. The page draws
-//! radiance B/π (`_RADIOSITY`, else `COLOR_0`) × 2^exposure, linear → sRGB in the shader, with
-//! orbit and walk cameras and the glb's cameras as presets (template: `view.html`).
+//! radiance B/π (`_RADIOSITY`, else `COLOR_0`) × 2^exposure, linear → sRGB in the shader, back
+//! faces black, as `hirad render` does; orbit and walk cameras, the glb's cameras and those of
+//! `--scene` as presets (template: `view.html`; `#noui&noaa` after its URL gives the bare
+//! canvas without antialiasing, the pixels of `hirad render --ss 1`).
 
 use super::image_args::{parse_exposure, Exposure};
 use crate::Global;
+use hirad::scene::SceneOptions;
 use hirad::Error;
 use std::path::{Path, PathBuf};
 
@@ -24,10 +27,16 @@ pub struct Args {
     /// to 1. Changed in the page with the slider or the +/- keys.
     #[arg(long, default_value = "0", value_parser = parse_exposure, allow_hyphen_values = true)]
     pub exposure: Exposure,
+    /// The scene the solution was solved from (file or built-in name): its up axis, and its
+    /// cameras as presets, the page starting at its default view (the one `hirad render
+    /// --scene` draws) instead of the fit view.
+    #[arg(long)]
+    pub scene: Option<String>,
     /// Up axis of the model's coordinates: `y` (glTF's convention) or `z` (hirad solutions of
-    /// Z-up scenes keep the scene's coordinates). Also switchable in the page.
-    #[arg(long, default_value = "y", value_parser = ["y", "z"], ignore_case = true)]
-    pub up: String,
+    /// Z-up scenes keep the scene's coordinates) [default: the scene's with --scene, else y].
+    /// Also switchable in the page.
+    #[arg(long, value_parser = ["y", "z"], ignore_case = true)]
+    pub up: Option<String>,
 }
 
 pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
@@ -44,14 +53,34 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let config = serde_json::json!({
+    let mut config = serde_json::json!({
         "name": name,
         "exposure": match a.exposure {
             Exposure::Stops(s) => serde_json::json!(s),
             Exposure::Auto => serde_json::json!("auto"),
         },
-        "up": a.up.to_ascii_lowercase(),
+        "up": a.up.as_deref().unwrap_or("y").to_ascii_lowercase(),
     });
+    if let Some(spec) = &a.scene {
+        let sc = super::load_scene(spec, &SceneOptions::default())?;
+        if a.up.is_none() {
+            config["up"] = serde_json::json!(sc.up);
+        }
+        let mut cams = sc.cameras.clone();
+        if cams.is_empty() {
+            cams.push(sc.default_camera());
+        }
+        config["cameras"] = cams
+            .iter()
+            .map(|c| {
+                serde_json::json!({
+                    "name": c.name, "eye": c.eye.to_array(), "target": c.target.to_array(),
+                    "fov": c.fov_deg.to_radians(),
+                })
+            })
+            .collect();
+        config["start"] = serde_json::json!(0);
+    }
     // `</` cannot end the script element early when written as `<\/`.
     let config = serde_json::to_string(&config)?.replace("</", "<\\/");
     // The glb last: its base64 cannot hold the config's marker (no `*`).
