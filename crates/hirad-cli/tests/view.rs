@@ -237,3 +237,159 @@ fn view_at_the_scene_camera_matches_render() {
         "{v}"
     );
 }
+
+/// A hand-made glb: a 2×2 quad (uint16 indices, `COLOR_0` as normalized uint8 VEC4, no
+/// `_RADIOSITY`) under a node translated by +1 in x, and a camera node "cam A" at (1, 0, 5)
+/// looking down −z.
+fn quad_glb() -> Vec<u8> {
+    let mut bin = Vec::new();
+    for p in [[-1f32, -1., 0.], [1., -1., 0.], [1., 1., 0.], [-1., 1., 0.]] {
+        for x in p {
+            bin.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for _ in 0..4 {
+        bin.extend_from_slice(&[255, 128, 0, 255]);
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0, "translation": [1, 0, 0]},
+                  {"camera": 0, "name": "cam A", "translation": [1, 0, 5]}],
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": 0.8, "znear": 0.01, "aspectRatio": 1.5}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2}]}],
+        "buffers": [{"byteLength": bin.len()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 16},
+                        {"buffer": 0, "byteOffset": 64, "byteLength": 12}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-1, -1, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5121, "normalized": true, "count": 4, "type": "VEC4"},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}]
+    });
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let mut js = serde_json::to_vec(&doc).unwrap();
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((28 + js.len() + bin.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(js.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&js);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// The page's parser (node transforms, uint16 indices, normalized `COLOR_0`, camera nodes) and
+/// its controls, driven by synthetic events from a probe script added to a copy of the page;
+/// the results are read back from the DOM Chromium dumps.
+#[test]
+fn view_parses_a_hand_made_glb_and_its_controls_move_the_camera() {
+    let Some(chrome) = browser() else {
+        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let glb = d.path().join("quad.glb");
+    std::fs::write(&glb, quad_glb()).unwrap();
+    let r = hirad().args(["-q", "view"]).arg(&glb).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let html = std::fs::read_to_string(d.path().join("viewer.html")).unwrap();
+    let probe = r#"<script>
+const out = {}, near = (a, b) => Math.hypot(...sub(a, b)) < 1e-4;
+const key = (k) => window.dispatchEvent(new KeyboardEvent("keydown", { key: k }));
+const canvas = $("gl");
+const ptr = (type, x, y, o) => canvas.dispatchEvent(new PointerEvent(type,
+  { clientX: x, clientY: y, pointerId: 1, button: 0, ...o }));
+out.count = $("count").textContent;
+out.options = [...$("cams").options].map((o) => o.text);
+out.centre = centre;
+out.colour = Array.from(model.col.slice(0, 3));
+out.fit = [cam.dist, cam.yaw, cam.pitch];
+key("+"); out.exposurePlus = exposure;
+$("auto").click(); out.exposureAuto = exposure;
+// Orbit drag: yaw turns, the target and distance stay.
+const t0 = cam.target.slice(), d0 = cam.dist, y0 = cam.yaw;
+ptr("pointerdown", 100, 100); ptr("pointermove", 150, 100); ptr("pointerup", 150, 100);
+out.orbit = { turned: cam.yaw !== y0, targetKept: near(cam.target, t0), distKept: cam.dist === d0 };
+// Wheel zooms, shift-drag pans.
+canvas.dispatchEvent(new WheelEvent("wheel", { deltaY: 100, cancelable: true }));
+out.zoomedOut = cam.dist > d0;
+ptr("pointerdown", 100, 100, { shiftKey: true }); ptr("pointermove", 100, 150); ptr("pointerup", 100, 150);
+out.panned = !near(cam.target, t0);
+// The glb's camera as a preset.
+$("cams").value = "0"; $("cams").onchange();
+out.presetEye = eye(); out.presetFov = cam.fov; out.presetDir = dir();
+// Walk: W moves the eye forward, a drag turns around the eye.
+key("Tab"); out.mode = $("mode").textContent;
+const e0 = eye(); key("w"); moveKeys(1); window.dispatchEvent(new KeyboardEvent("keyup", { key: "w" }));
+out.walked = sub(eye(), e0);
+const e1 = eye(); ptr("pointerdown", 100, 100); ptr("pointermove", 160, 120); ptr("pointerup", 160, 120);
+out.lookKeptEye = near(eye(), e1);
+key("f"); out.fitAgain = [cam.dist, cam.yaw, cam.pitch];
+document.body.insertAdjacentHTML("beforeend", "<pre id='probe'>" + JSON.stringify(out) + "</pre>");
+</script>
+</body>"#;
+    let page = d.path().join("probe.html");
+    std::fs::write(&page, html.replacen("</body>", probe, 1)).unwrap();
+    let r = Command::new(&chrome)
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-gl=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--dump-dom",
+        ])
+        .arg(format!(
+            "--user-data-dir={}",
+            d.path().join("profile").display()
+        ))
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .unwrap();
+    let dom = String::from_utf8_lossy(&r.stdout);
+    let start = dom
+        .find("<pre id=\"probe\">")
+        .expect("probe output in the DOM")
+        + "<pre id=\"probe\">".len();
+    let len = dom[start..].find("</pre>").unwrap();
+    let v: serde_json::Value = serde_json::from_str(&dom[start..start + len]).unwrap();
+    eprintln!("{v}");
+    let f = |x: &serde_json::Value| x.as_f64().unwrap();
+    let close = |a: &serde_json::Value, b: [f64; 3]| (0..3).all(|i| (f(&a[i]) - b[i]).abs() < 1e-4);
+    assert_eq!(v["count"], "2 triangles · COLOR_0");
+    assert_eq!(v["options"], serde_json::json!(["fit view", "cam A"]));
+    assert!(close(&v["centre"], [1.0, 0.0, 0.0]), "{v}");
+    assert!(close(&v["colour"], [1.0, 128.0 / 255.0, 0.0]), "{v}");
+    assert_eq!(f(&v["exposurePlus"]), 0.5);
+    // 99th percentile of luminance 0.2126 + 0.7152 · 128/255, to 0.1 stop.
+    let auto = -(0.2126f64 + 0.7152 * 128.0 / 255.0).log2();
+    assert!((f(&v["exposureAuto"]) - auto).abs() < 0.051, "{v}");
+    assert_eq!(
+        v["orbit"],
+        serde_json::json!({"turned": true, "targetKept": true, "distKept": true})
+    );
+    assert_eq!(v["zoomedOut"], true);
+    assert_eq!(v["panned"], true);
+    assert!(close(&v["presetEye"], [1.0, 0.0, 5.0]), "{v}");
+    assert!(close(&v["presetDir"], [0.0, 0.0, -1.0]), "{v}");
+    assert!((f(&v["presetFov"]) - 0.8).abs() < 1e-6);
+    assert_eq!(v["mode"], "walk");
+    // Y up: forward along −z, by the walking speed (a quarter of the radius √2 per second).
+    assert!(close(&v["walked"], [0.0, 0.0, -0.25 * 2f64.sqrt()]), "{v}");
+    assert_eq!(v["lookKeptEye"], true);
+    assert_eq!(v["fitAgain"], v["fit"]);
+}
