@@ -26,7 +26,7 @@
 //!
 //! Importance to bright elements ([`GatherOptions::bright`], on by default): solution triangles
 //! far brighter than the mean (lamp housings, lit patches next to a lamp) are also sampled by
-//! area with a shadow ray, combined with the gather rays by multiple importance sampling; on
+//! area (stratified as the emitter samples) with a shadow ray, combined with the gather rays by multiple importance sampling; on
 //! graz_office it halves the gather's noise at the same time. Measured and left out: shading
 //! close hits by one more bounce instead of the solution (no gain on office or graz_office,
 //! `docs/perf-log.md` 2026-12-03 (6)).
@@ -520,7 +520,7 @@ impl<'a> Gatherer<'a> {
         upick: f64,
         ul: (f32, f32),
         ud: (f32, f32),
-        rng: &mut SplitMix64,
+        ub: (f64, (f32, f32)),
         cnt: &mut Counts,
     ) -> Vec3 {
         let scene = self.scene;
@@ -602,7 +602,7 @@ impl<'a> Gatherer<'a> {
         };
         out += rho * l_in;
         if let Some(br) = &self.bright {
-            out += rho * self.bright_sample(x, n, br, rng, cnt);
+            out += rho * self.bright_sample(x, n, br, ub, cnt);
         }
         out
     }
@@ -614,12 +614,11 @@ impl<'a> Gatherer<'a> {
         x: Vec3,
         n: Vec3,
         br: &Bright,
-        rng: &mut SplitMix64,
+        (upick, (u1, u2)): (f64, (f32, f32)),
         cnt: &mut Counts,
     ) -> Vec3 {
-        let bt = br.pick(rng.next_f64());
-        let s = rng.next_f32().sqrt();
-        let u2 = rng.next_f32();
+        let bt = br.pick(upick);
+        let s = u1.sqrt();
         let (w0, w1, w2) = (1.0 - s, s * (1.0 - u2), s * u2);
         let y = bt.p[0] * w0 + bt.p[1] * w1 + bt.p[2] * w2;
         let to = y - x;
@@ -668,7 +667,15 @@ impl<'a> Gatherer<'a> {
         let mut perm_px: Vec<u32> = (0..n).collect();
         let mut perm_l: Vec<u32> = (0..n).collect();
         let mut perm_pick: Vec<u32> = (0..n).collect();
-        for p in [&mut perm_px, &mut perm_l, &mut perm_pick] {
+        let mut perm_bpick: Vec<u32> = (0..n).collect();
+        let mut perm_b: Vec<u32> = (0..n).collect();
+        for p in [
+            &mut perm_px,
+            &mut perm_l,
+            &mut perm_pick,
+            &mut perm_bpick,
+            &mut perm_b,
+        ] {
             for i in (1..n as usize).rev() {
                 let j = (rng.next_u64() % (i as u64 + 1)) as usize;
                 p.swap(i, j);
@@ -681,6 +688,10 @@ impl<'a> Gatherer<'a> {
             let ul = stratum(perm_l[k as usize], a, b, &mut rng);
             let upick = (perm_pick[k as usize] as f64 + rng.next_f64()) / n as f64;
             let ud = stratum(k, a, b, &mut rng);
+            let ub = (
+                (perm_bpick[k as usize] as f64 + rng.next_f64()) / n as f64,
+                stratum(perm_b[k as usize], a, b, &mut rng),
+            );
             cnt.camera += 1;
             let Some(h) = self.caster.closest(frame.eye, d, 0.0, f32::INFINITY) else {
                 continue;
@@ -698,7 +709,7 @@ impl<'a> Gatherer<'a> {
             if mat.rho.max_element() > 0.0 {
                 let ns = if front { ng } else { -ng };
                 let p = frame.eye + d * h.t + ns * self.eps;
-                l += self.reflected(p, ns, mat.rho, upick, ul, ud, &mut rng, cnt);
+                l += self.reflected(p, ns, mat.rho, upick, ul, ud, ub, cnt);
             }
             sum += l.as_dvec3();
         }
