@@ -45,7 +45,7 @@ fn view_writes_one_self_contained_page_holding_the_glb() {
         .arg(&glb)
         .arg("--out")
         .arg(&out)
-        .args(["--exposure", "-1.5"])
+        .args(["--exposure", "-1.5", "--up", "Z"])
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
@@ -63,6 +63,7 @@ fn view_writes_one_self_contained_page_holding_the_glb() {
         assert!(!lower.contains(bad), "the page holds '{bad}'");
     }
     assert!(html.contains(r#""exposure":-1.5"#));
+    assert!(html.contains(r#""up":"z""#));
     assert!(html.contains(r#""name":"solution.glb""#));
     assert!(!html.contains("HIRAD_CONFIG"));
 
@@ -86,11 +87,10 @@ fn view_of_a_non_glb_exits_2_naming_the_file() {
         assert!(err.contains(name), "{err}");
         assert!(!d.path().join("viewer.html").exists());
     }
-    let r = hirad()
-        .args(["view", "x.glb", "--exposure", "bright"])
-        .output()
-        .unwrap();
-    assert_eq!(r.status.code(), Some(2));
+    for bad in [["--exposure", "bright"], ["--up", "x"]] {
+        let r = hirad().args(["view", "x.glb"]).args(bad).output().unwrap();
+        assert_eq!(r.status.code(), Some(2));
+    }
 }
 
 /// The first browser of `chromium`, `chromium-browser`, `google-chrome` on PATH.

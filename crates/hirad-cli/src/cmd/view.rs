@@ -35,8 +35,16 @@ pub struct Args {
     /// Up axis of the model's coordinates: `y` (glTF's convention) or `z` (hirad solutions of
     /// Z-up scenes keep the scene's coordinates) [default: the scene's with --scene, else y].
     /// Also switchable in the page.
-    #[arg(long, value_parser = ["y", "z"], ignore_case = true)]
+    #[arg(long, value_parser = parse_up)]
     pub up: Option<String>,
+}
+
+/// `y` or `z`, in any case.
+fn parse_up(s: &str) -> Result<String, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        u @ ("y" | "z") => Ok(u.to_string()),
+        _ => Err(format!("the up axis is y or z, got '{s}'")),
+    }
 }
 
 pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
@@ -59,7 +67,7 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
             Exposure::Stops(s) => serde_json::json!(s),
             Exposure::Auto => serde_json::json!("auto"),
         },
-        "up": a.up.as_deref().unwrap_or("y").to_ascii_lowercase(),
+        "up": a.up.as_deref().unwrap_or("y"),
     });
     if let Some(spec) = &a.scene {
         let sc = super::load_scene(spec, &SceneOptions::default())?;
