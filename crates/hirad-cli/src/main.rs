@@ -81,6 +81,12 @@ enum Command {
 }
 
 fn main() {
+    // A closed pipe (`hirad info … | head`) ends the process quietly, as it ends other Unix
+    // tools, instead of a panic in `println!`.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     hirad::study::records::set_build_commit(env!("HIRAD_BUILD_COMMIT"));
     let cli = Cli::parse();
     init_logging(&cli.global);
