@@ -93,13 +93,20 @@ fn view_of_a_non_glb_exits_2_naming_the_file() {
     }
 }
 
-/// The first browser of `chromium`, `chromium-browser`, `google-chrome` on PATH.
+/// The first browser of `chromium`, `chromium-browser`, `google-chrome` on PATH; required
+/// when `HIRAD_REQUIRE_BROWSER` is set (CI sets it).
 fn browser() -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    ["chromium", "chromium-browser", "google-chrome"]
-        .iter()
-        .flat_map(|b| std::env::split_paths(&path).map(move |d| d.join(b)))
-        .find(|p| p.is_file())
+    let found = std::env::var_os("PATH").and_then(|path| {
+        ["chromium", "chromium-browser", "google-chrome"]
+            .iter()
+            .flat_map(|b| std::env::split_paths(&path).map(move |d| d.join(b)))
+            .find(|p| p.is_file())
+    });
+    assert!(
+        found.is_some() || std::env::var_os("HIRAD_REQUIRE_BROWSER").is_none(),
+        "a headless browser is required: install chromium"
+    );
+    found
 }
 
 /// Screenshot of `page` (with `#flags`) at 640×480 by a headless Chromium into `png`; fails
