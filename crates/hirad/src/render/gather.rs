@@ -35,7 +35,7 @@
 //! rendered in parallel and the image does not depend on the number of threads.
 
 use super::camera::{CameraFrame, CameraView};
-use super::image::Image;
+use super::image::{render_rows, Image};
 use super::pathtrace::{alias_table, cosine_sample, power_heuristic, Lights};
 use crate::cluster::{ClusterConfig, ClusterTree, Strategy};
 use crate::progress::Progress;
@@ -48,7 +48,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 /// How a gather ray reads the solution at its hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -737,27 +737,10 @@ impl<'a> Gatherer<'a> {
         let frame = view.frame();
         let w = view.width as usize;
         let mut img = Image::new(view.width, view.height, Vec3::ZERO);
-        progress.start("gather", view.height as u64);
-        let counts: Vec<Counts> = img
-            .pixels
-            .par_chunks_mut(w)
-            .enumerate()
-            .map(|(y, row)| {
-                let mut cnt = Counts::default();
-                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return cnt;
-                }
-                for (x, px) in row.iter_mut().enumerate() {
-                    *px = self.pixel(&frame, x, y, w, &mut cnt);
-                }
-                progress.inc(1);
-                cnt
-            })
-            .collect();
-        progress.finish();
-        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(Error::Interrupted);
-        }
+        let counts: Vec<Counts> =
+            render_rows(&mut img, "gather", progress, cancel, |x, y, cnt| {
+                self.pixel(&frame, x, y, w, cnt)
+            })?;
         let sum = |f: fn(&Counts) -> u64| counts.iter().map(f).sum::<u64>();
         let stats = GatherStats {
             camera_rays: sum(|c| c.camera),

@@ -239,6 +239,47 @@ pub fn encode_srgb8(v: f32) -> u8 {
     (srgb_encode(v) * 255.0 + 0.5) as u8
 }
 
+/// Fill `img` in parallel, a row at a time: `pixel(x, y, counts)` per pixel, one `C` of
+/// counts per row (returned in row order), progress by rows; `Error::Interrupted` when `cancel`
+/// is set meanwhile.
+pub(crate) fn render_rows<C, F>(
+    img: &mut Image,
+    label: &str,
+    progress: &dyn crate::progress::Progress,
+    cancel: Option<&std::sync::atomic::AtomicBool>,
+    pixel: F,
+) -> Result<Vec<C>>
+where
+    C: Default + Send,
+    F: Fn(usize, usize, &mut C) -> Vec3 + Sync,
+{
+    use rayon::prelude::*;
+    use std::sync::atomic::Ordering;
+    let w = img.width as usize;
+    progress.start(label, img.height as u64);
+    let counts: Vec<C> = img
+        .pixels
+        .par_chunks_mut(w)
+        .enumerate()
+        .map(|(y, row)| {
+            let mut cnt = C::default();
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                return cnt;
+            }
+            for (x, px) in row.iter_mut().enumerate() {
+                *px = pixel(x, y, &mut cnt);
+            }
+            progress.inc(1);
+            cnt
+        })
+        .collect();
+    progress.finish();
+    if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+        return Err(Error::Interrupted);
+    }
+    Ok(counts)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,7 +25,7 @@
 //!   depend on the number of threads.
 
 use super::camera::{CameraFrame, CameraView};
-use super::image::Image;
+use super::image::{render_rows, Image};
 use crate::progress::Progress;
 use crate::ray::{RayCaster, Segment};
 use crate::rng::SplitMix64;
@@ -35,7 +35,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 /// Settings of the path tracer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -616,28 +616,11 @@ impl<'a> PathTracer<'a> {
         let frame = view.frame();
         let w = view.width as usize;
         let mut img = Image::new(view.width, view.height, Vec3::ZERO);
-        progress.start("reference", view.height as u64);
         let spp = self.opts.spp;
-        let counts: Vec<Counts> = img
-            .pixels
-            .par_chunks_mut(w)
-            .enumerate()
-            .map(|(y, row)| {
-                let mut cnt = Counts::default();
-                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                    return cnt;
-                }
-                for (x, px) in row.iter_mut().enumerate() {
-                    *px = self.pixel(&frame, x, y, w, &mut cnt);
-                }
-                progress.inc(1);
-                cnt
-            })
-            .collect();
-        progress.finish();
-        if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-            return Err(Error::Interrupted);
-        }
+        let counts: Vec<Counts> =
+            render_rows(&mut img, "reference", progress, cancel, |x, y, cnt| {
+                self.pixel(&frame, x, y, w, cnt)
+            })?;
         let stats = ReferenceStats {
             paths: view.width as u64 * view.height as u64 * spp as u64,
             segments: counts.iter().map(|c| c.segments).sum(),
