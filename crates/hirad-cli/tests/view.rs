@@ -93,8 +93,8 @@ fn view_of_a_non_glb_exits_2_naming_the_file() {
     }
 }
 
-/// The first browser of `chromium`, `chromium-browser`, `google-chrome` on PATH; required
-/// when `HIRAD_REQUIRE_BROWSER` is set (CI sets it).
+/// The first browser of `chromium`, `chromium-browser`, `google-chrome` on PATH (the test is
+/// skipped without one); required when `HIRAD_REQUIRE_BROWSER` is set (CI sets it).
 fn browser() -> Option<PathBuf> {
     let found = std::env::var_os("PATH").and_then(|path| {
         ["chromium", "chromium-browser", "google-chrome"]
@@ -106,6 +106,9 @@ fn browser() -> Option<PathBuf> {
         found.is_some() || std::env::var_os("HIRAD_REQUIRE_BROWSER").is_none(),
         "a headless browser is required: install chromium"
     );
+    if found.is_none() {
+        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
+    }
     found
 }
 
@@ -159,7 +162,6 @@ fn screenshot(chrome: &Path, page: &Path, flags: &str, png: &Path, profile: &Pat
 #[test]
 fn view_draws_the_model_in_headless_chromium() {
     let Some(chrome) = browser() else {
-        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
         return;
     };
     let d = tempfile::tempdir().unwrap();
@@ -196,7 +198,6 @@ fn view_draws_the_model_in_headless_chromium() {
 #[test]
 fn view_at_the_scene_camera_matches_render() {
     let Some(chrome) = browser() else {
-        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
         return;
     };
     let d = tempfile::tempdir().unwrap();
@@ -305,7 +306,6 @@ fn quad_glb() -> Vec<u8> {
 #[test]
 fn view_parses_a_hand_made_glb_and_its_controls_move_the_camera() {
     let Some(chrome) = browser() else {
-        eprintln!("note: no chromium, chromium-browser or google-chrome on PATH: skipped");
         return;
     };
     let d = tempfile::tempdir().unwrap();
