@@ -14,6 +14,25 @@ pub mod validate;
 pub mod view;
 
 use hirad::scene::{Scene, SceneOptions};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// A flag that the first Ctrl-C sets (printing `message`, if any), for long work to stop at
+/// its next check; a second Ctrl-C ends the process (exit 130). A handler cannot be installed
+/// twice in one process; the flag then stays unset.
+pub fn cancel_on_ctrl_c(message: Option<&'static str>) -> Arc<AtomicBool> {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let c = cancel.clone();
+    let _ = ctrlc::set_handler(move || {
+        if c.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        if let Some(m) = message {
+            eprintln!("{m}");
+        }
+    });
+    cancel
+}
 
 /// Load a scene (path or built-in name), logging the time.
 pub fn load_scene(spec: &str, opts: &SceneOptions) -> anyhow::Result<Scene> {

@@ -13,8 +13,6 @@ use hirad::ray::RayCaster;
 use hirad::render::{CameraView, PathTracer, ReferenceOptions};
 use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -123,15 +121,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         rr_depth: a.rr_depth,
         max_depth: a.max_depth,
     };
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let c = cancel.clone();
-        let _ = ctrlc::set_handler(move || {
-            if c.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-        });
-    }
+    let cancel = super::cancel_on_ctrl_c(None);
     let bars = Bars::new(g.quiet);
     let tracer = PathTracer::new(&scene, &caster, &ropts);
     let cpu0 = cpu_seconds();

@@ -16,8 +16,6 @@ use hirad::scene::export::read_colored_mesh;
 use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -94,15 +92,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let (img, gather_stats, prepare_seconds) = match (a.gather.gather, &scene) {
         (Some(n), Some(sc)) => {
-            let cancel = Arc::new(AtomicBool::new(false));
-            {
-                let c = cancel.clone();
-                let _ = ctrlc::set_handler(move || {
-                    if c.swap(true, Ordering::SeqCst) {
-                        std::process::exit(130);
-                    }
-                });
-            }
+            let cancel = super::cancel_on_ctrl_c(None);
             let bars = Bars::new(g.quiet || g.json);
             let r = a.gather.gather(
                 n,

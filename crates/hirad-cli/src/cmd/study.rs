@@ -8,8 +8,6 @@ use hirad::radiosity::{ClusterEmission, Oracle, SolverConfig, VisibilityMode};
 use hirad::ray::Boxes;
 use hirad::study::run::{self, Study, StudyConfig};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 #[command(args_conflicts_with_subcommands = true)]
@@ -215,17 +213,9 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         hirad::Error::Config("a scene is required (or `hirad study merge DIR...`)".into())
     })?;
     let cfg = config(&a, &scene)?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let c = cancel.clone();
-        // A second Ctrl-C while the first is being handled kills the process as usual.
-        let _ = ctrlc::set_handler(move || {
-            if c.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-            eprintln!("\ninterrupted: finishing nothing half-written; rerun to resume");
-        });
-    }
+    let cancel = super::cancel_on_ctrl_c(Some(
+        "\ninterrupted: finishing nothing half-written; rerun to resume",
+    ));
     let multi = indicatif::MultiProgress::new();
     let bars = Bars::in_multi(g.quiet, multi.clone());
     let t0 = std::time::Instant::now();

@@ -36,7 +36,7 @@
 
 use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
-use super::pathtrace::{alias_table, cosine_sample, power_heuristic, Lights};
+use super::pathtrace::{alias_table, cosine_sample, power_heuristic, surface_eps, Lights};
 use crate::cluster::{ClusterConfig, ClusterTree, Strategy};
 use crate::progress::Progress;
 use crate::ray::RayCaster;
@@ -152,15 +152,6 @@ pub struct SolutionLookup {
     pub unmatched: usize,
     /// Solution triangles of zero area (left out).
     pub degenerate: usize,
-}
-
-/// Offset of ray origins off a surface, as the path tracer's (scene units).
-fn surface_eps(scene: &Scene) -> f32 {
-    let diag = scene.bbox.extent().length();
-    let scale = diag
-        .max(scene.bbox.min.abs().max_element())
-        .max(scene.bbox.max.abs().max_element());
-    (scale * 2e-6).max(1e-7)
 }
 
 impl SolutionLookup {

@@ -410,19 +410,25 @@ impl RayTally for RayLog {
     }
 }
 
+/// Offset of ray origins off a surface (scene units): relative to the scene's extent and its
+/// distance from the origin, so that f32 positions far from the origin still leave it.
+pub(crate) fn surface_eps(scene: &Scene) -> f32 {
+    let diag = scene.bbox.extent().length();
+    let scale = diag
+        .max(scene.bbox.min.abs().max_element())
+        .max(scene.bbox.max.abs().max_element());
+    (scale * 2e-6).max(1e-7)
+}
+
 impl<'a> PathTracer<'a> {
     /// Prepare the light distribution.
     pub fn new(scene: &'a Scene, caster: &'a RayCaster<'a>, opts: &ReferenceOptions) -> Self {
-        let diag = scene.bbox.extent().length();
-        let scale = diag
-            .max(scene.bbox.min.abs().max_element())
-            .max(scene.bbox.max.abs().max_element());
         PathTracer {
             scene,
             caster,
             opts: opts.clone(),
             lights: Lights::new(scene),
-            eps: (scale * 2e-6).max(1e-7),
+            eps: surface_eps(scene),
             up: scene.up.vector(),
         }
     }
