@@ -1,62 +1,40 @@
 //! hirad — hierarchical radiosity with clustering.
 //!
-//! Implements the system studied in Hasenfratz, Damez, Sillion & Drettakis,
-//! *A Practical Analysis of Clustering Strategies for Hierarchical Radiosity* (EG'99):
-//! one [`cluster::ClusterTree`] type built by every clustering strategy of the paper, used both
-//! as the radiosity cluster hierarchy and as the ray-casting accelerator.
+//! The system studied in Hasenfratz, Damez, Sillion & Drettakis, *A Practical Analysis of
+//! Clustering Strategies for Hierarchical Radiosity* (EG'99): one [`cluster::ClusterTree`] type
+//! built by every clustering strategy of the paper, used both as the radiosity cluster hierarchy
+//! and as the ray-casting accelerator. This crate re-exports the workspace's crates in the order
+//! data flows through them:
 //!
-//! Module map (one concept each):
-//! - [`scene`]: the scene model (flat arrays), loaders (OBJ/MTL, glTF, PLY, TOML scene files),
-//!   built-in procedural scenes;
-//! - [`cluster`]: the cluster tree and one file per construction strategy, statistics;
-//! - [`ray`]: ray casting through a cluster tree, the paper's ray-casting test;
-//! - [`radiosity`]: the hierarchical radiosity solver;
-//! - [`render`]: camera, rasteriser, path-traced references, image output;
-//! - [`metrics`]: CIELUV image error;
-//! - [`study`]: the paper's experiments as reproducible sweeps.
+//! | module | crate | what |
+//! |---|---|---|
+//! | [`error`], [`geom`], [`io`], [`rng`], [`progress`] | `hirad-core` | errors, boxes, atomic files, random numbers, progress hook |
+//! | [`scene`] | `hirad-scene` | scene model, loaders (OBJ, glTF, PLY, MGF, TOML), exporters, built-ins |
+//! | [`cluster`], [`ray`] | `hirad-accel` | cluster trees (one file per strategy), ray casting |
+//! | [`radiosity`] | `hirad-radiosity` | elements, links, the cluster model, the solver |
+//! | [`render`], [`metrics`] | `hirad-render` | camera, rasteriser, path tracer, final gather, images, CIELUV |
+//! | [`study`] | `hirad-study` | the paper's experiments, plots, reports |
+//!
+//! Solve the built-in Cornell box and read the solution:
+//!
+//! ```
+//! use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
+//! use hirad::progress::NoProgress;
+//! use hirad::radiosity::{solve, SolverConfig};
+//! use hirad::scene::{Scene, SceneOptions};
+//!
+//! let scene = Scene::load("cornell", &SceneOptions::default())?;
+//! let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+//! let solution = solve(&scene, &tree, &SolverConfig::preset("fast")?, &NoProgress)?;
+//! // The back wall (white, lit by the ceiling lamp) has a positive radiosity.
+//! assert!(solution.triangle_radiosity(0, false).max_element() >= 0.0);
+//! assert!(solution.links.len() > 0);
+//! # Ok::<(), hirad::Error>(())
+//! ```
 
-/// `parse` (case-insensitive) and `name` of a command-line choice, from one table of names;
-/// the error lists the names ("unknown refinement oracle 'x' (bf or error)"). Defined before
-/// the modules so that every module can use it.
-macro_rules! choice {
-    ($t:ident, $what:literal, $($v:ident => $s:literal),+ $(,)?) => {
-        impl $t {
-            /// Parse the name given on the command line (any case).
-            pub fn parse(s: &str) -> $crate::Result<$t> {
-                match s.to_ascii_lowercase().as_str() {
-                    $($s => Ok($t::$v),)+
-                    _ => Err($crate::Error::Config(format!(
-                        "unknown {} '{s}' ({})",
-                        $what,
-                        $crate::error::alternatives(&[$($s),+])
-                    ))),
-                }
-            }
-
-            /// Name as on the command line.
-            pub fn name(self) -> &'static str {
-                match self {
-                    $($t::$v => $s,)+
-                }
-            }
-        }
-    };
-}
-
-pub mod cluster;
-pub mod error;
-pub mod geom;
-pub mod io;
-pub mod metrics;
-pub mod progress;
-pub mod radiosity;
-pub mod ray;
-pub mod render;
-pub mod rng;
-pub mod scene;
-pub mod study;
-
-pub use error::{Error, Result};
-
-/// Version of the library, recorded in every experiment output.
-pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+pub use hirad_accel::{cluster, ray};
+pub use hirad_core::{error, geom, io, progress, rng, Error, Result, VERSION};
+pub use hirad_radiosity as radiosity;
+pub use hirad_render::{self as render, metrics};
+pub use hirad_scene as scene;
+pub use hirad_study as study;

@@ -1,0 +1,748 @@
+//! Ray casting through a [`ClusterTree`] (paper §3.2.2: one
+//! structure for clustering and ray casting).
+//!
+//! Interface used by the solver and the renderer: [`RayCaster::occluded`] (any hit) and
+//! [`RayCaster::closest`] (first hit). Segments are `origin + t·dir`, `t ∈ [tmin, tmax]`, `dir`
+//! not necessarily normalised.
+//!
+//! [`RayCaster::new`] lays the tree out for traversal without changing its topology
+//! (`layout.rs`): the children of a node in groups of four boxes in structure-of-arrays form
+//! (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
+//! child reference, the triangles attached to each node (inner nodes included) in packets of
+//! four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap
+//! and a node may have any number of children. The triangle test is watertight
+//! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
+//! with its f64 hit distance decides every candidate); the box test is conservative
+//! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
+//! contain their contents exactly: tight around them by default (a node's own triangles
+//! behind boxes of their own, a long run of them split into pieces, a node holding only one
+//! child passed through), or the strategy's boxes grown to their contents
+//! ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
+//! an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
+//! and the watertight test never reports them (`layout.rs`'s `Ray4::flat_in_plane`: a segment
+//! along a floor no longer visits every floor cell it passes). So the result equals a
+//! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
+//! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
+//! strategies.
+//!
+//! The hit children of a group are pushed farthest first (the nearest is visited next), for
+//! occlusion as well; closest-hit queries also skip entries farther than the current hit.
+//! Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
+//! [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
+//! node of each in turn, so that the memory latency of one ray's next node (prefetched at the
+//! end of the step before) overlaps with work on the others; it places the hit children on
+//! its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
+//! the sorted push, whose branches random rays mispredict). Counters ([`RayStats`]) are
+//! compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
+//! no counting cost.
+//!
+//! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
+//! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
+//! through the same tree.
+
+mod layout;
+pub mod sample;
+pub mod volume;
+pub mod watertight;
+
+use crate::cluster::ClusterTree;
+use glam::Vec3;
+use hirad_scene::Scene;
+pub use layout::Boxes;
+use layout::{Layout, Ray4};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::mem::MaybeUninit;
+use watertight::{intersect, RayPre};
+
+/// A ray hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Triangle id.
+    pub tri: u32,
+    /// Barycentric coordinate of vertex 1.
+    pub u: f32,
+    /// Barycentric coordinate of vertex 2.
+    pub v: f32,
+}
+
+/// A query segment `origin + t·dir`, `t ∈ [tmin, tmax]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Segment {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl Segment {
+    /// Lower end of the parameter range of the paper's ray-casting test (`experiments.md` §2).
+    pub const SPEC_TMIN: f32 = 1e-4;
+    /// Upper end of the parameter range of the paper's ray-casting test.
+    pub const SPEC_TMAX: f32 = 1.0 - 1e-4;
+
+    /// Segment from `p` to `q` as the ray-casting test defines it: origin `p`, direction
+    /// `q − p`, `t ∈ [1e-4, 1 − 1e-4]`.
+    pub fn between(p: Vec3, q: Vec3) -> Segment {
+        Segment {
+            origin: p,
+            dir: q - p,
+            tmin: Self::SPEC_TMIN,
+            tmax: Self::SPEC_TMAX,
+        }
+    }
+}
+
+/// Traversal counters of one or many queries.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RayStats {
+    /// Queries counted.
+    pub rays: u64,
+    /// Nodes popped and processed (the root included when its box is hit).
+    pub nodes: u64,
+    /// Slab tests (root box and child boxes).
+    pub boxes: u64,
+    /// Ray–triangle tests.
+    pub tris: u64,
+}
+
+impl RayStats {
+    /// Add another set of counters.
+    pub fn add(&mut self, o: &RayStats) {
+        self.rays += o.rays;
+        self.nodes += o.nodes;
+        self.boxes += o.boxes;
+        self.tris += o.tris;
+    }
+
+    /// Mean nodes visited per ray.
+    pub fn nodes_per_ray(&self) -> f64 {
+        self.nodes as f64 / self.rays.max(1) as f64
+    }
+
+    /// Mean triangle tests per ray.
+    pub fn tris_per_ray(&self) -> f64 {
+        self.tris as f64 / self.rays.max(1) as f64
+    }
+
+    /// Mean box tests per ray.
+    pub fn boxes_per_ray(&self) -> f64 {
+        self.boxes as f64 / self.rays.max(1) as f64
+    }
+}
+
+/// Traversal stack kept in a fixed array on the machine stack (not initialised), spilling to
+/// the heap only for very deep or very wide trees.
+pub(crate) struct Stack<T: Copy, const N: usize> {
+    buf: [MaybeUninit<T>; N],
+    len: usize,
+    heap: Vec<T>,
+    spilled: bool,
+}
+
+impl<T: Copy, const N: usize> Stack<T, N> {
+    #[inline(always)]
+    pub(crate) fn new() -> Self {
+        Self {
+            buf: [const { MaybeUninit::uninit() }; N],
+            len: 0,
+            heap: Vec::new(),
+            spilled: false,
+        }
+    }
+
+    #[inline(always)]
+    pub(crate) fn push(&mut self, x: T) {
+        if !self.spilled {
+            if self.len < N {
+                self.buf[self.len].write(x);
+                self.len += 1;
+                return;
+            }
+            self.heap.reserve(2 * N);
+            // SAFETY: the first `len` entries were written by `push`.
+            self.heap.extend(
+                self.buf[..self.len]
+                    .iter()
+                    .map(|x| unsafe { x.assume_init() }),
+            );
+            self.spilled = true;
+        }
+        self.heap.push(x);
+    }
+
+    #[inline(always)]
+    pub(crate) fn pop(&mut self) -> Option<T> {
+        if self.spilled {
+            return self.heap.pop();
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: entries below the old `len` were written by `push`.
+        Some(unsafe { self.buf[self.len].assume_init() })
+    }
+
+    #[inline(always)]
+    fn size(&self) -> usize {
+        if self.spilled {
+            self.heap.len()
+        } else {
+            self.len
+        }
+    }
+
+    /// The `k` topmost entries.
+    #[inline(always)]
+    fn top_mut(&mut self, k: usize) -> &mut [T] {
+        if self.spilled {
+            let l = self.heap.len();
+            &mut self.heap[l - k..]
+        } else {
+            let s = &mut self.buf[self.len - k..self.len];
+            // SAFETY: these entries were written by `push`; MaybeUninit<T> has T's layout.
+            unsafe { &mut *(s as *mut [MaybeUninit<T>] as *mut [T]) }
+        }
+    }
+}
+
+/// Segments per parallel work item of the batch queries.
+const BATCH_CHUNK: usize = 256;
+/// Rays in flight in [`RayCaster::occluded_stream`].
+pub const STREAM: usize = 8;
+/// Stack depth of a ray in flight (deeper queries are redone by the single-ray traversal).
+const LANE_STACK: usize = 62;
+
+/// What one step of a ray in flight decided.
+enum Step {
+    Continue,
+    Hit,
+    Miss,
+    Overflow,
+}
+
+/// A ray in flight of [`RayCaster::occluded_stream`].
+#[derive(Clone, Copy)]
+struct Lane {
+    r: RayPre,
+    r4: Ray4,
+    tmin: f32,
+    tmax: f32,
+    seg: u32,
+    len: u32,
+    /// A query is in flight.
+    busy: bool,
+    stack: [u32; LANE_STACK],
+}
+
+impl Lane {
+    /// Visit the next node of this ray (the same work as one iteration of
+    /// `occluded_impl`).
+    #[inline(always)]
+    fn step(&mut self, l: &Layout) -> Step {
+        if self.len == 0 {
+            return Step::Miss;
+        }
+        self.len -= 1;
+        let n = self.stack[self.len as usize];
+        let (mut ts, mut nt, g0, ng) = l.node(n);
+        for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
+            let (all, rank) = self.r4.test_ranked(g, f, self.tmin, self.tmax);
+            let (mask, run) = g.split_eager(all);
+            if let Some(run) = run {
+                (ts, nt) = run;
+            }
+            let len = self.len as usize;
+            if len + 4 > LANE_STACK {
+                if mask == 0 {
+                    continue;
+                }
+                return Step::Overflow;
+            }
+            // Lanes not hit land above the new top, where they are overwritten later.
+            for (&r, &c) in rank.iter().zip(&g.child) {
+                self.stack[len + (r as usize & 3)] = c;
+            }
+            self.len += mask.count_ones();
+        }
+        if nt > 0 && l.any_hit(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false) {
+            return Step::Hit;
+        }
+        if self.len > 0 {
+            l.prefetch(self.stack[self.len as usize - 1]);
+        }
+        Step::Continue
+    }
+}
+
+/// Entry of the traversal stack: node reference and entry distance of its box.
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    t: f32,
+}
+
+/// Ray caster over a scene and one of its cluster trees.
+pub struct RayCaster<'a> {
+    pub scene: &'a Scene,
+    pub tree: &'a ClusterTree,
+    layout: Layout,
+}
+
+/// Stack size kept on the machine stack.
+const STACK: usize = 128;
+
+impl<'a> RayCaster<'a> {
+    /// Prepare the traversal data of `tree`.
+    pub fn new(scene: &'a Scene, tree: &'a ClusterTree) -> Self {
+        Self::with_boxes(scene, tree, Boxes::default())
+    }
+
+    /// Prepare the traversal data of `tree`, testing the boxes `boxes` (same results either
+    /// way; [`Boxes::Cluster`] measures the strategy's own boxes).
+    pub fn with_boxes(scene: &'a Scene, tree: &'a ClusterTree, boxes: Boxes) -> Self {
+        Self {
+            scene,
+            tree,
+            layout: Layout::new(scene, tree, boxes),
+        }
+    }
+
+    /// Bytes used by the traversal layout.
+    pub fn memory_bytes(&self) -> usize {
+        self.layout.memory_bytes()
+    }
+
+    /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
+    #[inline]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        self.occluded_impl::<false, _>(origin, dir, tmin, tmax, &mut RayStats::default(), &|_| {
+            false
+        })
+    }
+
+    /// True when some triangle `t` with `!skip(t)` is hit for `t ∈ [tmin, tmax]` (the
+    /// solver's shadow rays leave out the surfaces of a link's own ends).
+    #[inline]
+    pub fn occluded_except<F: Fn(u32) -> bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (tmin, tmax): (f32, f32),
+        skip: &F,
+    ) -> bool {
+        self.occluded_impl::<false, F>(origin, dir, tmin, tmax, &mut RayStats::default(), skip)
+    }
+
+    /// The closest hit for `t ∈ [tmin, tmax]`.
+    #[inline]
+    pub fn closest(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        self.closest_impl::<false>(origin, dir, tmin, tmax, &mut RayStats::default())
+    }
+
+    /// [`RayCaster::occluded`] that also adds its traversal counters to `stats`.
+    pub fn occluded_stats(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> bool {
+        stats.rays += 1;
+        self.occluded_impl::<true, _>(origin, dir, tmin, tmax, stats, &|_| false)
+    }
+
+    /// [`RayCaster::closest`] that also adds its traversal counters to `stats`.
+    pub fn closest_stats(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> Option<Hit> {
+        stats.rays += 1;
+        self.closest_impl::<true>(origin, dir, tmin, tmax, stats)
+    }
+
+    /// Occlusion of many segments, in parallel; the result is in input order and does not
+    /// depend on the number of threads.
+    pub fn occluded_batch(&self, segs: &[Segment]) -> Vec<bool> {
+        let mut out = vec![false; segs.len()];
+        out.par_chunks_mut(BATCH_CHUNK)
+            .zip(segs.par_chunks(BATCH_CHUNK))
+            .for_each(|(o, s)| self.occluded_stream(s, o));
+        out
+    }
+
+    /// Closest hits of many segments, in parallel, in input order.
+    pub fn closest_batch(&self, segs: &[Segment]) -> Vec<Option<Hit>> {
+        segs.par_iter()
+            .with_min_len(256)
+            .map(|s| self.closest(s.origin, s.dir, s.tmin, s.tmax))
+            .collect()
+    }
+
+    /// Number of occluded segments (parallel, deterministic).
+    pub fn count_occluded(&self, segs: &[Segment]) -> u64 {
+        segs.par_chunks(BATCH_CHUNK)
+            .map(|s| {
+                let mut o = [false; BATCH_CHUNK];
+                self.occluded_stream(s, &mut o[..s.len()]);
+                o.iter().filter(|&&x| x).count() as u64
+            })
+            .sum()
+    }
+
+    /// Occlusion of `segs` on the calling thread, written to `out` (same length), with
+    /// [`STREAM`] rays in flight at once: each step visits one node of each ray in turn, so
+    /// the memory loads of one ray's next node (prefetched when it was pushed) overlap with
+    /// the work on the others. Same results as [`RayCaster::occluded`] for every segment.
+    pub fn occluded_stream(&self, segs: &[Segment], out: &mut [bool]) {
+        assert_eq!(segs.len(), out.len(), "one output per segment");
+        let l = &self.layout;
+        let Some(root) = l.root else {
+            out.fill(false);
+            return;
+        };
+        let idle = Lane {
+            r: RayPre::new(Vec3::ZERO, Vec3::X).expect("a valid ray"),
+            r4: Ray4::default(),
+            tmin: 0.0,
+            tmax: 0.0,
+            seg: 0,
+            len: 0,
+            busy: false,
+            stack: [0; LANE_STACK],
+        };
+        let mut lanes = [idle; STREAM];
+        let mut next = 0usize;
+        // Start the next segment that is not decided at once in `lane`; false when none is
+        // left.
+        let start = |lane: &mut Lane, next: &mut usize, out: &mut [bool]| -> bool {
+            while *next < segs.len() {
+                let i = *next;
+                *next += 1;
+                out[i] = false;
+                let s = &segs[i];
+                let Some(r) = RayPre::new(s.origin, s.dir) else {
+                    continue;
+                };
+                if s.tmin.is_nan() || s.tmax.is_nan() || s.tmin > s.tmax {
+                    continue;
+                }
+                if r.slab(&l.root_box, s.tmin, s.tmax).is_none() {
+                    continue;
+                }
+                l.prefetch(root);
+                lane.r4.set(&r);
+                lane.r = r;
+                lane.tmin = s.tmin;
+                lane.tmax = s.tmax;
+                lane.seg = i as u32;
+                lane.stack[0] = root;
+                lane.len = 1;
+                lane.busy = true;
+                return true;
+            }
+            lane.busy = false;
+            false
+        };
+        let mut active = 0usize;
+        for lane in lanes.iter_mut() {
+            active += start(lane, &mut next, out) as usize;
+        }
+        while active > 0 {
+            for lane in lanes.iter_mut() {
+                if !lane.busy {
+                    continue;
+                }
+                match lane.step(l) {
+                    Step::Continue => continue,
+                    Step::Hit => out[lane.seg as usize] = true,
+                    Step::Miss => {}
+                    Step::Overflow => {
+                        let s = &segs[lane.seg as usize];
+                        out[lane.seg as usize] = self.occluded(s.origin, s.dir, s.tmin, s.tmax);
+                    }
+                }
+                if !start(lane, &mut next, out) {
+                    active -= 1;
+                }
+            }
+        }
+    }
+
+    /// Traversal counters of occlusion queries over `segs` (parallel; counts are sums, hence
+    /// independent of the thread count).
+    pub fn occluded_batch_stats(&self, segs: &[Segment]) -> (u64, RayStats) {
+        segs.par_chunks(1024)
+            .map(|ch| {
+                let mut st = RayStats::default();
+                let mut hits = 0u64;
+                for s in ch {
+                    hits += self.occluded_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st) as u64;
+                }
+                (hits, st)
+            })
+            .reduce(
+                || (0, RayStats::default()),
+                |mut a, b| {
+                    a.0 += b.0;
+                    a.1.add(&b.1);
+                    a
+                },
+            )
+    }
+
+    /// Traversal counters of closest-hit queries over `segs`; also returns the number of hits.
+    pub fn closest_batch_stats(&self, segs: &[Segment]) -> (u64, RayStats) {
+        segs.par_chunks(1024)
+            .map(|ch| {
+                let mut st = RayStats::default();
+                let mut hits = 0u64;
+                for s in ch {
+                    hits += self
+                        .closest_stats(s.origin, s.dir, s.tmin, s.tmax, &mut st)
+                        .is_some() as u64;
+                }
+                (hits, st)
+            })
+            .reduce(
+                || (0, RayStats::default()),
+                |mut a, b| {
+                    a.0 += b.0;
+                    a.1.add(&b.1);
+                    a
+                },
+            )
+    }
+
+    /// Brute-force occlusion: every triangle of the scene, same triangle test.
+    pub fn occluded_brute(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        let Some(r) = RayPre::new(origin, dir) else {
+            return false;
+        };
+        (0..self.scene.num_triangles()).any(|i| {
+            let [a, b, c] = self.scene.tri_vertices(i);
+            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+            intersect(&r, &v, tmin, tmax).is_some()
+        })
+    }
+
+    /// Brute-force closest hit: every triangle of the scene, same triangle test. Ties in `t`
+    /// go to the lowest triangle id.
+    pub fn closest_brute(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let r = RayPre::new(origin, dir)?;
+        let mut best: Option<Hit> = None;
+        let mut tmax = tmax;
+        for i in 0..self.scene.num_triangles() {
+            let [a, b, c] = self.scene.tri_vertices(i);
+            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+            if let Some((t, u, v)) = intersect(&r, &v, tmin, tmax) {
+                if best.is_none_or(|h| t < h.t) {
+                    tmax = t;
+                    best = Some(Hit {
+                        t,
+                        tri: i as u32,
+                        u,
+                        v,
+                    });
+                }
+            }
+        }
+        best
+    }
+
+    #[inline(always)]
+    fn occluded_impl<const STATS: bool, F: Fn(u32) -> bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+        skip: &F,
+    ) -> bool {
+        let l = &self.layout;
+        let Some(root) = l.root else {
+            return false;
+        };
+        let Some(r) = RayPre::new(origin, dir) else {
+            return false;
+        };
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
+            return false;
+        }
+        if STATS {
+            stats.boxes += 1;
+        }
+        if r.slab(&l.root_box, tmin, tmax).is_none() {
+            return false;
+        }
+        let r4 = Ray4::new(&r);
+        let mut stack: Stack<u32, STACK> = Stack::new();
+        stack.push(root);
+        while let Some(n) = stack.pop() {
+            if STATS {
+                stats.nodes += l.is_node(n) as u64;
+            }
+            let (mut ts, mut nt, g0, ng) = l.node(n);
+            for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
+                if STATS {
+                    stats.boxes += g.lanes as u64;
+                }
+                let (all, mut tn) = r4.test(g, f, tmin, tmax);
+                let (mask, run) = g.split_eager(all);
+                if let Some(run) = run {
+                    (ts, nt) = run;
+                }
+                g.rank_first(&mut tn);
+                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+            }
+            if nt > 0 && l.any_hit(&r, (ts, nt), tmin, tmax, &mut stats.tris, skip) {
+                return true;
+            }
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn closest_impl<const STATS: bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+    ) -> Option<Hit> {
+        let l = &self.layout;
+        let root = l.root?;
+        let r = RayPre::new(origin, dir)?;
+        if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
+            return None;
+        }
+        if STATS {
+            stats.boxes += 1;
+        }
+        let t0 = r.slab(&l.root_box, tmin, tmax)?;
+        let r4 = Ray4::new(&r);
+        let mut best_t = tmax;
+        let mut best: Option<(u32, f32, f32)> = None;
+        let mut stack: Stack<Entry, STACK> = Stack::new();
+        stack.push(Entry { node: root, t: t0 });
+        while let Some(e) = stack.pop() {
+            if e.t > best_t * watertight::BOX_SLACK {
+                continue;
+            }
+            let (ts, nt, g0, ng) = l.node(e.node);
+            if STATS {
+                stats.nodes += l.is_node(e.node) as u64;
+                stats.tris += nt as u64;
+            }
+            if nt > 0 {
+                l.closest_hit(&r, ts, nt, tmin, &mut best_t, &mut best);
+            }
+            if ng == 1 {
+                let g = &l.groups[g0];
+                if STATS {
+                    stats.boxes += g.lanes as u64;
+                }
+                let (mask, tn) = r4.test(g, &l.faces[g0], tmin, best_t);
+                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
+                    node: c,
+                    t,
+                });
+                continue;
+            }
+            // More than four children: push every hit, then sort the new entries.
+            let before = stack.size();
+            for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
+                if STATS {
+                    stats.boxes += g.lanes as u64;
+                }
+                let (mut mask, tn) = r4.test(g, f, tmin, best_t);
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    l.prefetch(g.child[i]);
+                    stack.push(Entry {
+                        node: g.child[i],
+                        t: tn[i],
+                    });
+                }
+            }
+            let k = stack.size() - before;
+            if k > 1 {
+                // Nearest on top: decreasing entry distance.
+                stack.top_mut(k).sort_by(|a, b| b.t.total_cmp(&a.t));
+            }
+        }
+        best.map(|(tri, u, v)| Hit {
+            t: best_t,
+            tri,
+            u,
+            v,
+        })
+    }
+}
+
+/// Push the hit lanes (`mask`) of one group so that the nearest entry distance is on top
+/// (visited first); ties keep the tree's child order.
+#[inline(always)]
+fn push_sorted<T: Copy, const N: usize>(
+    stack: &mut Stack<T, N>,
+    l: &Layout,
+    mask: u32,
+    tn: &[f32; 4],
+    child: &[u32; 4],
+    entry: impl Fn(u32, f32) -> T,
+) {
+    match mask.count_ones() {
+        0 => {}
+        1 => {
+            let i = mask.trailing_zeros() as usize;
+            l.prefetch(child[i]);
+            stack.push(entry(child[i], tn[i]));
+        }
+        2 => {
+            let i = mask.trailing_zeros() as usize;
+            let j = (mask & (mask - 1)).trailing_zeros() as usize;
+            // Farthest first; on a tie the higher lane first, as below.
+            let (a, b) = if tn[i] <= tn[j] { (j, i) } else { (i, j) };
+            l.prefetch(child[a]);
+            stack.push(entry(child[a], tn[a]));
+            l.prefetch(child[b]);
+            stack.push(entry(child[b], tn[b]));
+        }
+        _ => {
+            // Lanes sorted by decreasing distance (farthest pushed first).
+            let mut idx = [0usize; 4];
+            let mut k = 0;
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                // Insertion: keep idx[..k] by decreasing tn, ties in decreasing lane order.
+                let mut j = k;
+                while j > 0 && tn[idx[j - 1]] <= tn[i] {
+                    idx[j] = idx[j - 1];
+                    j -= 1;
+                }
+                idx[j] = i;
+                k += 1;
+            }
+            for &i in &idx[..k] {
+                l.prefetch(child[i]);
+                stack.push(entry(child[i], tn[i]));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

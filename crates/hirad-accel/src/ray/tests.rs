@@ -1,0 +1,612 @@
+//! Unit tests of the traversal layout.
+
+use super::*;
+use crate::cluster::{BuildNode, BuildTree, ClusterConfig, Strategy};
+use hirad_core::geom::Aabb;
+use hirad_scene::{Material, RawScene, SceneOptions};
+
+fn two_tri_scene() -> Scene {
+    let raw = RawScene {
+        name: "two".into(),
+        positions: vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(2.0, 0.0, 1.0),
+            Vec3::new(0.0, 2.0, 1.0),
+        ],
+        triangles: vec![[0, 1, 2], [3, 4, 5]],
+        tri_material: vec![0, 0],
+        tri_object: vec![0, 0],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// A scene of `n` separate triangles, triangle `i` with the corners `corners(i)`.
+fn tri_scene(name: &str, n: usize, corners: impl Fn(usize) -> [Vec3; 3]) -> Scene {
+    let raw = RawScene {
+        name: name.into(),
+        positions: (0..n).flat_map(&corners).collect(),
+        triangles: (0..n as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect(),
+        tri_material: vec![0; n],
+        tri_object: vec![0; n],
+        materials: vec![Material::diffuse("m", Vec3::splat(0.5))],
+        ..Default::default()
+    };
+    Scene::from_raw(raw, &SceneOptions::default()).unwrap()
+}
+
+/// Corners (min, max) of a random box with corners drawn from `grid`.
+fn grid_box(
+    g: &mut hirad_core::rng::SplitMix64,
+    grid: impl Fn(&mut hirad_core::rng::SplitMix64) -> f32,
+) -> (Vec3, Vec3) {
+    let a = Vec3::new(grid(g), grid(g), grid(g));
+    let b = Vec3::new(grid(g), grid(g), grid(g));
+    (a.min(b), a.max(b))
+}
+
+/// Unit right triangles in the plane z = 0, two apart along x.
+fn row_of_triangles(name: &str, n: usize) -> Scene {
+    tri_scene(name, n, |i| {
+        let x = i as f32 * 2.0;
+        [
+            Vec3::new(x, 0.0, 0.0),
+            Vec3::new(x + 1.0, 0.0, 0.0),
+            Vec3::new(x, 1.0, 0.0),
+        ]
+    })
+}
+
+/// Batch occlusion of segments straight down from `origins`, `t ∈ [0, 2]`.
+fn stream_down(rc: &RayCaster, origins: impl Iterator<Item = Vec3>) -> Vec<bool> {
+    let segs: Vec<Segment> = origins
+        .map(|origin| Segment {
+            origin,
+            dir: -Vec3::Z,
+            tmin: 0.0,
+            tmax: 2.0,
+        })
+        .collect();
+    let mut out = vec![false; segs.len()];
+    rc.occluded_stream(&segs, &mut out);
+    out
+}
+
+/// A root whose children are one leaf per triangle.
+fn one_leaf_per_triangle(s: &Scene) -> ClusterTree {
+    let n = s.num_triangles();
+    let mut b = BuildTree::default();
+    let kids: Vec<u32> = (0..n)
+        .map(|i| {
+            b.push(BuildNode {
+                bbox: s.tri_bbox(i),
+                children: vec![],
+                surfaces: vec![i as u32],
+            })
+        })
+        .collect();
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: vec![],
+    });
+    ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default())
+}
+
+/// Root holding the triangles `own` with one leaf child holding triangle `leaf`.
+fn root_and_leaf(scene: &Scene, own: Vec<u32>, leaf: u32) -> ClusterTree {
+    let mut b = BuildTree::default();
+    let child = b.push(BuildNode {
+        bbox: scene.tri_bbox(leaf as usize),
+        children: vec![],
+        surfaces: vec![leaf],
+    });
+    b.root = b.push(BuildNode {
+        bbox: scene.bbox,
+        children: vec![child],
+        surfaces: own,
+    });
+    let n = scene.num_triangles();
+    ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default())
+}
+
+/// Root holding triangle 1 with one leaf child holding triangle 0.
+fn inner_surface_tree(scene: &Scene) -> ClusterTree {
+    root_and_leaf(scene, vec![1], 0)
+}
+
+#[test]
+fn layout_is_depth_first_with_inner_surfaces() {
+    let s = two_tri_scene();
+    let t = inner_surface_tree(&s);
+    for boxes in Boxes::ALL {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        let l = &rc.layout;
+        // The root has a child: one group holding its own triangle (1) and the leaf's box; the
+        // leaf is encoded in place and holds triangle 0 in the second packet. With tight boxes
+        // the root's triangle has a box of its own in the second lane.
+        assert_eq!(l.root, Some(0));
+        assert_eq!(l.groups.len(), 1);
+        let g = &l.groups[0];
+        let (lanes, run) = match boxes {
+            Boxes::Tight | Boxes::Nodes => (2, 0b10),
+            Boxes::Cluster => (1, 0),
+        };
+        assert_eq!(
+            (
+                g.tri_start,
+                g.num_tris,
+                g.num_groups,
+                g.lanes,
+                g.run,
+                g.eager
+            ),
+            (0, 1, 1, lanes, run, run as u8)
+        );
+        assert_eq!(l.packets.len(), 2);
+        assert_eq!(l.packets[0].id, [1, u32::MAX, u32::MAX, u32::MAX]);
+        assert_eq!(l.packets[1].id, [0, u32::MAX, u32::MAX, u32::MAX]);
+        let leaf = g.child[0];
+        assert_ne!(leaf & layout::LEAF, 0);
+        assert_eq!(layout::leaf_run(leaf), (1, 1));
+        let lane1 = match boxes {
+            // The run's reference: the group holding it.
+            Boxes::Tight | Boxes::Nodes => layout::RUN,
+            Boxes::Cluster => layout::NONE,
+        };
+        assert_eq!(g.child[1..], [lane1, layout::NONE, layout::NONE]);
+        if boxes != Boxes::Cluster {
+            // Visiting the run's reference tests the root's triangle; visiting the root does
+            // not.
+            assert_eq!(l.node(layout::RUN), (0, 1, 0, 0));
+            assert_eq!(l.node(0), (0, 0, 0, 1));
+        } else {
+            assert_eq!(l.node(0), (0, 1, 0, 1));
+        }
+        // The leaf's box is triangle 0's box; empty lanes are inverted.
+        assert_eq!([g.b[0][0], g.b[1][0], g.b[2][0]], [0.0, 0.0, 0.0]);
+        assert_eq!([g.b[3][0], g.b[4][0], g.b[5][0]], [1.0, 1.0, 0.0]);
+        let lane1 = [1, 4].map(|a| g.b[a][1]);
+        if boxes != Boxes::Cluster {
+            // Triangle 1's box: (0, 0, 1)–(2, 2, 1).
+            assert_eq!(lane1, [0.0, 2.0]);
+            assert_eq!([g.b[2][1], g.b[5][1]], [1.0, 1.0]);
+        } else {
+            assert!(lane1[0] > lane1[1]);
+        }
+        assert!(g.b[0][2] > g.b[3][2]);
+        assert_eq!(l.root_box, [0.0, 0.0, 0.0, 2.0, 2.0, 1.0]);
+    }
+}
+
+#[test]
+fn a_sparse_run_is_visited_in_distance_order() {
+    // A root holding 99 small triangles spread along a row (a random line through their box
+    // crosses 0.25 of them, 0.0025 per triangle tested) and a leaf child holding the last
+    // one: the run's reference is pushed, not tested at once.
+    let s = row_of_triangles("row", 100);
+    let t = root_and_leaf(&s, (0..99).collect(), 99);
+    // The run kept whole (tight boxes split it: `a_long_run_is_split_into_pieces`).
+    let rc = RayCaster::with_boxes(&s, &t, Boxes::Nodes);
+    let g = &rc.layout.groups[0];
+    assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
+    // Down onto the leaf's triangle: the leaf is visited, the run's box (x ≤ 197) is missed.
+    let o = Vec3::new(2.0 * 99.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert_eq!((st.nodes, st.tris), (2, 1));
+    // Down onto triangle 50 of the run: the run is visited and tested up to the sixteen-wide
+    // packet holding triangle 50 (the fourth: 64 triangles).
+    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert_eq!((st.nodes, st.tris), (1, 64));
+    let out = stream_down(
+        &rc,
+        [0.25f32, 1.25]
+            .map(|y| Vec3::new(100.25, y, 1.0))
+            .into_iter(),
+    );
+    assert_eq!(out, [true, false]);
+}
+
+#[test]
+fn a_long_run_is_split_into_pieces() {
+    // The root of `a_sparse_run_is_visited_in_distance_order` (99 triangles in a row and a
+    // leaf child): with tight boxes its run is split into pieces that fill the three free lanes
+    // of its group, groups of pieces below them, and chunks of at most 16 triangles.
+    let s = row_of_triangles("row", 100);
+    let t = root_and_leaf(&s, (0..99).collect(), 99);
+    let rc = RayCaster::new(&s, &t);
+    let l = &rc.layout;
+    let g = &l.groups[0];
+    assert_eq!((g.lanes, g.num_tris, g.run, g.num_groups), (4, 0, 0, 1));
+    let subs = l.groups.iter().filter(|g| g.run & layout::SUB != 0).count();
+    assert!(subs >= 3, "{subs}");
+    // Every triangle is stored once, in chunks of at most 16 nearby triangles.
+    let mut chunks = Vec::new();
+    for g in &l.groups {
+        for &r in g
+            .child
+            .iter()
+            .filter(|&&r| r != layout::NONE && r & layout::LEAF != 0)
+        {
+            let (ps, n) = layout::leaf_run(r);
+            let ids: Vec<u32> = if n >= layout::WIDE_MIN {
+                l.wide[ps].id[..n].to_vec()
+            } else {
+                (0..n).map(|i| l.packets[ps + i / 4].id[i % 4]).collect()
+            };
+            chunks.push(ids);
+        }
+    }
+    let mut all: Vec<u32> = chunks.iter().flatten().copied().collect();
+    all.sort_unstable();
+    assert_eq!(all, (0..100).collect::<Vec<u32>>());
+    for c in &chunks {
+        let (lo, hi) = (c.iter().min().unwrap(), c.iter().max().unwrap());
+        assert!(c.len() <= 16 && (hi - lo) as usize == c.len() - 1, "{c:?}");
+    }
+    // Down onto triangle 50: the root is the only node of the tree visited, and only the
+    // chunk holding triangle 50 is tested (64 triangles with the run whole).
+    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    assert!(st.nodes == 1 && st.tris <= 16, "{st:?}");
+    // Every triangle is found, by closest hit, single occlusion and the stream; the gaps
+    // between them are empty.
+    let origin = |i: usize| Vec3::new(i as f32 + 0.25, 0.25, 1.0);
+    let out = stream_down(&rc, (0..200).map(origin));
+    for (i, &o) in out.iter().enumerate() {
+        let hit = i % 2 == 0;
+        assert_eq!(o, hit, "{i}");
+        assert_eq!(rc.occluded(origin(i), -Vec3::Z, 0.0, 2.0), hit, "{i}");
+        let h = rc.closest(origin(i), -Vec3::Z, 0.0, 2.0).map(|h| h.tri);
+        assert_eq!(h, hit.then_some(i as u32 / 2), "{i}");
+    }
+}
+
+#[test]
+fn rays_pass_through_nodes_holding_only_one_child() {
+    // Root → (leaf: triangle 0, node without triangles → leaf: triangle 1), the empty half of
+    // a k-d cell. With tight boxes the middle node's box is its child's: the root's lane
+    // refers to the leaf directly and the middle node has no group; with the cluster's boxes
+    // every node is visited.
+    let s = row_of_triangles("chain", 2);
+    let mut b = BuildTree::default();
+    let leaf0 = b.push(BuildNode {
+        bbox: s.tri_bbox(0),
+        children: vec![],
+        surfaces: vec![0],
+    });
+    let leaf1 = b.push(BuildNode {
+        bbox: s.tri_bbox(1),
+        children: vec![],
+        surfaces: vec![1],
+    });
+    let mid = b.push(BuildNode {
+        bbox: s.tri_bbox(1),
+        children: vec![leaf1],
+        surfaces: vec![],
+    });
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: vec![leaf0, mid],
+        surfaces: vec![],
+    });
+    let t = ClusterTree::from_build(b, 2, Strategy::Kdt, ClusterConfig::default());
+    assert_eq!(t.nodes.len(), 4);
+    let o = Vec3::new(2.25, 0.25, 1.0);
+    for (boxes, groups, nodes) in [
+        (Boxes::Tight, 1, 2),
+        (Boxes::Nodes, 1, 2),
+        (Boxes::Cluster, 2, 3),
+    ] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        assert_eq!(rc.layout.groups.len(), groups, "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        assert_eq!((st.nodes, st.tris), (nodes, 1), "{boxes:?}");
+        assert_eq!(rc.closest(o, -Vec3::Z, 0.0, 2.0).map(|h| h.tri), Some(1));
+        assert_eq!(
+            stream_down(&rc, [o, o - Vec3::X].into_iter()),
+            [true, false]
+        );
+    }
+}
+
+#[test]
+fn tight_boxes_shrink_a_loose_cluster_box() {
+    // A root box far larger than its contents (a k-d cell): the tight root box is the
+    // triangles' box, so a ray through the empty part of the cell visits nothing (with the
+    // cluster's box it visits the root and tests the root's own triangle).
+    let s = two_tri_scene();
+    let mut t = inner_surface_tree(&s);
+    t.nodes[0].bbox.max = Vec3::splat(10.0);
+    let (o, d) = (Vec3::new(5.0, 5.0, -1.0), Vec3::Z);
+    for (boxes, root_max, visits) in [(Boxes::Cluster, 10.0, 1), (Boxes::Tight, 2.0, 0)] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        assert_eq!(rc.layout.root_box[3], root_max);
+        let mut st = RayStats::default();
+        assert!(!rc.occluded_stats(o, d, 0.0, 20.0, &mut st));
+        assert_eq!((st.nodes, st.tris), (visits, visits), "{boxes:?}");
+    }
+}
+
+#[test]
+fn packets_and_groups_hold_wide_nodes() {
+    // A root with six leaf children of one triangle each: two groups (4 + 2 lanes).
+    let s = row_of_triangles("six", 6);
+    let t = one_leaf_per_triangle(&s);
+    let rc = RayCaster::new(&s, &t);
+    let l = &rc.layout;
+    assert_eq!(l.groups.len(), 2);
+    assert_eq!((l.groups[0].num_groups, l.groups[0].lanes), (2, 4));
+    assert_eq!(l.groups[1].lanes, 2);
+    assert_eq!(l.packets.len(), 6);
+    // Every triangle is found from above, by both query kinds, with the right id.
+    for i in 0..6u32 {
+        let o = Vec3::new(i as f32 * 2.0 + 0.25, 0.25, 1.0);
+        let h = rc.closest(o, -Vec3::Z, 0.0, 2.0).unwrap();
+        assert_eq!(h.tri, i);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!(rc.occluded(o, -Vec3::Z, 0.0, 2.0));
+        assert!(!rc.occluded(o + Vec3::new(0.0, 2.0, 0.0), -Vec3::Z, 0.0, 2.0));
+    }
+    // The stream gives the same answers, in order.
+    let out = stream_down(
+        &rc,
+        (0..12).map(|i| {
+            Vec3::new(
+                (i / 2) as f32 * 2.0 + 0.25,
+                0.25 + 2.0 * (i % 2) as f32,
+                1.0,
+            )
+        }),
+    );
+    let want: Vec<bool> = (0..12).map(|i| i % 2 == 0).collect();
+    assert_eq!(out, want);
+}
+
+#[test]
+fn closest_is_nearest_through_inner_node() {
+    let s = two_tri_scene();
+    let t = inner_surface_tree(&s);
+    let rc = RayCaster::new(&s, &t);
+    // From above, downwards: triangle 1 (z = 1) first, then triangle 0 (z = 0).
+    let h = rc
+        .closest(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 10.0)
+        .unwrap();
+    assert_eq!(h.tri, 1);
+    assert!((h.t - 1.0).abs() < 1e-6);
+    // From below, upwards: triangle 0 first.
+    let h = rc
+        .closest(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0)
+        .unwrap();
+    assert_eq!(h.tri, 0);
+    assert!((h.t - 1.0).abs() < 1e-6);
+    // Segment ending before triangle 1.
+    assert!(!rc.occluded(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 0.9));
+    assert!(rc.occluded(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 1.0));
+    // Counters, for both kinds of boxes: (closest from above, any hit from below, any hit
+    // from below with tmax = 1.5) as (nodes, triangles, boxes).
+    for (boxes, want) in [
+        // The root's own triangle is tested on visiting the root (after its children's boxes
+        // for occlusion).
+        (Boxes::Cluster, [(1, 1, 2), (1, 1, 2), (2, 2, 2)]),
+        // The root's own triangle has a lane (one box test more). Closest hit visits it like a
+        // leaf, in order of distance; occlusion tests it as soon as its box is hit (a big
+        // triangle filling its box: `EAGER_HITS_PER_TEST`), before the nearer leaf.
+        (Boxes::Tight, [(1, 1, 3), (1, 1, 3), (2, 1, 3)]),
+    ] {
+        let rc = RayCaster::with_boxes(&s, &t, boxes);
+        let mut st = RayStats::default();
+        assert!(rc
+            .closest_stats(Vec3::new(0.2, 0.2, 2.0), -Vec3::Z, 0.0, 10.0, &mut st)
+            .is_some());
+        assert_eq!(st.rays, 1);
+        // The hit at the root (t = 1) culls the child box (entry t = 2).
+        assert_eq!((st.nodes, st.tris, st.boxes), want[0], "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 10.0, &mut st));
+        // Any hit stops the query (with the cluster's box the root's own triangle, t = 2, is
+        // tested on visiting the root, and hit).
+        assert_eq!((st.nodes, st.tris, st.boxes), want[1], "{boxes:?}");
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(Vec3::new(0.2, 0.2, -1.0), Vec3::Z, 0.0, 1.5, &mut st));
+        // With tmax = 1.5 the root triangle is missed and the leaf's is hit.
+        assert_eq!((st.nodes, st.tris, st.boxes), want[2], "{boxes:?}");
+    }
+}
+
+#[test]
+fn stack_spills_to_heap_in_order() {
+    let mut s: Stack<u32, 4> = Stack::new();
+    for i in 0..10 {
+        s.push(i);
+    }
+    assert_eq!(s.size(), 10);
+    assert_eq!(s.top_mut(3), &[7, 8, 9]);
+    let popped: Vec<u32> = std::iter::from_fn(|| s.pop()).collect();
+    assert_eq!(popped, (0..10).rev().collect::<Vec<_>>());
+}
+
+#[test]
+fn group_test_equals_scalar_slab() {
+    // The 4-wide box test of a group gives the scalar slab test's answer and entry distance
+    // in every lane, including rays with zero direction components (both signs) whose origin
+    // lies in a box plane (0·∞ = NaN), and never hits an empty lane. The one exception: a lane
+    // is skipped when the ray lies in the plane of one of its box's faces whose face bit is set
+    // (what touches that plane lies in it: coplanar with the ray; `Ray4::flat_in_plane`).
+    let mut g = hirad_core::rng::SplitMix64::new(4);
+    let grid = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
+    let mut hits = 0;
+    let mut skipped = 0;
+    for i in 0..20000 {
+        let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+        let mut d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
+        if i % 3 == 0 {
+            d[(i / 3) % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
+        }
+        let r = RayPre::new(o, d).unwrap();
+        let r4 = layout::Ray4::new(&r);
+        let mut grp = layout::Group::default();
+        let mut boxes = Vec::new();
+        let faces = (g.next_u64() & 0x3F3F3F) as u32;
+        for lane in 0..3 {
+            let (lo, hi) = grid_box(&mut g, grid);
+            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
+            boxes.push([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]);
+        }
+        let (mask, tn) = r4.test(&grp, &faces, 0.0, 10.0);
+        assert_eq!(mask & 8, 0, "empty lane hit");
+        for (lane, b) in boxes.iter().enumerate() {
+            let s = r.slab(b, 0.0, 10.0);
+            let f = faces >> (8 * lane);
+            let flat_in_plane = (0..3).any(|a| {
+                d[a] == 0.0
+                    && ((b[a] == o[a] && f >> a & 1 == 1)
+                        || (b[a + 3] == o[a] && f >> (a + 3) & 1 == 1))
+            });
+            skipped += (s.is_some() && flat_in_plane) as u32;
+            let s = s.filter(|_| !flat_in_plane);
+            assert_eq!(mask >> lane & 1 == 1, s.is_some(), "{o} {d} {b:?}");
+            if let Some(t) = s {
+                assert_eq!(tn[lane], t, "{o} {d} {b:?}");
+                hits += 1;
+            }
+        }
+    }
+    assert!(hits > 6000, "{hits}");
+    assert!(skipped > 50, "{skipped}");
+}
+
+#[test]
+fn long_runs_go_to_wide_packets() {
+    // A root holding 20 triangles of its own (a run of two wide packets: 16 + 4 lanes) and a
+    // leaf child with 3 (one four-wide packet). Every triangle is found, with its id, by
+    // closest hit, single occlusion and the stream.
+    let n = 23usize;
+    let s = row_of_triangles("long", n);
+    let mut b = BuildTree::default();
+    let mut leaf_box = s.tri_bbox(20);
+    leaf_box.grow_box(&s.tri_bbox(22));
+    let leaf = b.push(BuildNode {
+        bbox: leaf_box,
+        children: vec![],
+        surfaces: vec![20, 21, 22],
+    });
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: vec![leaf],
+        surfaces: (0..20).collect(),
+    });
+    let t = ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default());
+    // The run kept whole (tight boxes may split it into pieces).
+    let rc = RayCaster::with_boxes(&s, &t, Boxes::Nodes);
+    let l = &rc.layout;
+    assert_eq!((l.wide.len(), l.packets.len()), (2, 1));
+    assert_eq!(l.wide[1].id[..5], [16, 17, 18, 19, u32::MAX]);
+    assert_eq!(l.packets[0].id, [20, 21, 22, u32::MAX]);
+    let mut segs = Vec::new();
+    for i in 0..n as u32 {
+        let o = Vec3::new(i as f32 * 2.0 + 0.25, 0.25, 1.0);
+        let h = rc.closest(o, -Vec3::Z, 0.0, 2.0).unwrap();
+        assert_eq!(h.tri, i);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!(rc.occluded(o, -Vec3::Z, 0.0, 2.0));
+        // Beside the triangle (in the gap to the next one): nothing.
+        let miss = o + Vec3::new(1.0, 0.0, 0.0);
+        assert!(!rc.occluded(miss, -Vec3::Z, 0.0, 2.0));
+        segs.push(Segment::between(o, o - 2.0 * Vec3::Z));
+        segs.push(Segment::between(miss, miss - 2.0 * Vec3::Z));
+    }
+    let out = rc.occluded_batch(&segs);
+    assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
+}
+
+#[test]
+fn ranked_push_order_equals_sorted_push() {
+    // The branch-free positions of `test_ranked` put the hit lanes in the order `push_sorted`
+    // pushes them (decreasing entry distance, ties: higher lane first), and the lanes that are
+    // not hit after them; ties of entry distances included (boxes sharing a near plane).
+    let mut g = hirad_core::rng::SplitMix64::new(11);
+    let grid = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 5) as f32 * 0.5 - 1.0;
+    let mut ties = 0;
+    for _ in 0..20000 {
+        // Origins on the grid: often inside several boxes, whose entry distances are then all
+        // tmin (ties).
+        let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
+        let d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
+        let r = RayPre::new(o, d).unwrap();
+        let r4 = layout::Ray4::new(&r);
+        let mut grp = layout::Group::default();
+        for lane in 0..(g.next_u64() % 5) as usize {
+            let (lo, hi) = grid_box(&mut g, grid);
+            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
+        }
+        let (mask, tn) = r4.test(&grp, &0, 0.0, 100.0);
+        let (mask2, rank) = r4.test_ranked(&grp, &0, 0.0, 100.0);
+        assert_eq!(mask, mask2);
+        let mut sorted: Stack<u32, 8> = Stack::new();
+        push_sorted(
+            &mut sorted,
+            &layout::Layout::default(),
+            mask,
+            &tn,
+            &grp.child,
+            |c, _| c,
+        );
+        let k = mask.count_ones() as usize;
+        let mut ranked = [u32::MAX; 4];
+        for i in 0..4 {
+            ranked[rank[i] as usize] = i as u32;
+        }
+        assert_eq!(sorted.top_mut(k), &ranked[..k], "{mask:b} {tn:?} {rank:?}");
+        let mut all = rank;
+        all.sort();
+        assert_eq!(all, [0, 1, 2, 3]);
+        ties +=
+            (0..4).any(|i| (0..i).any(|j| mask >> i & mask >> j & 1 == 1 && tn[i] == tn[j])) as u32;
+    }
+    assert!(ties > 500, "{ties}");
+}
+
+#[test]
+fn stream_overflow_falls_back_to_single_ray() {
+    // A root with 100 leaf children stacked along z: a ray along z through all their boxes
+    // but beside the triangles pushes more entries than a ray in flight can hold; the stream
+    // hands it to the single-ray traversal and the answers stay exact.
+    let n = 100u32;
+    let s = tri_scene("stack", n as usize, |i| {
+        let z = i as f32 * 0.1;
+        [
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(1.0, 0.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ]
+    });
+    let t = one_leaf_per_triangle(&s);
+    let rc = RayCaster::new(&s, &t);
+    let segs: Vec<Segment> = [(0.9, 0.9), (0.2, 0.2), (0.6, 0.3), (0.3, 0.75)]
+        .iter()
+        .flat_map(|&(x, y)| {
+            [
+                Segment::between(Vec3::new(x, y, -1.0), Vec3::new(x, y, 11.0)),
+                Segment::between(Vec3::new(x, y, 11.0), Vec3::new(x, y, -1.0)),
+            ]
+        })
+        .collect();
+    let brute: Vec<bool> = segs
+        .iter()
+        .map(|s| rc.occluded_brute(s.origin, s.dir, s.tmin, s.tmax))
+        .collect();
+    assert_eq!(brute, [false, false, true, true, true, true, false, false]);
+    assert_eq!(rc.occluded_batch(&segs), brute);
+}

@@ -1,0 +1,194 @@
+//! Geometry primitives shared by every module: axis-aligned boxes and triangle helpers.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Axis-aligned bounding box. The empty box has `min = +inf`, `max = -inf`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    /// The empty box (identity of [`Aabb::union`]).
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// Box from its corners.
+    #[inline]
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    /// Tight box of a set of points.
+    pub fn from_points<'a>(pts: impl IntoIterator<Item = &'a Vec3>) -> Self {
+        let mut b = Self::EMPTY;
+        for p in pts {
+            b.grow(*p);
+        }
+        b
+    }
+
+    /// True when the box contains nothing.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+
+    /// Grow to contain a point.
+    #[inline]
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// Grow to contain another box.
+    #[inline]
+    pub fn grow_box(&mut self, b: &Aabb) {
+        self.min = self.min.min(b.min);
+        self.max = self.max.max(b.max);
+    }
+
+    /// Smallest box containing both.
+    #[inline]
+    pub fn union(&self, b: &Aabb) -> Aabb {
+        Aabb::new(self.min.min(b.min), self.max.max(b.max))
+    }
+
+    /// Intersection (possibly empty).
+    #[inline]
+    pub fn intersection(&self, b: &Aabb) -> Aabb {
+        Aabb::new(self.min.max(b.min), self.max.min(b.max))
+    }
+
+    /// Edge lengths (zero for the empty box).
+    #[inline]
+    pub fn extent(&self) -> Vec3 {
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
+    }
+
+    /// Centre point.
+    #[inline]
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Longest edge length: `size()` of `clustering.md`.
+    #[inline]
+    pub fn size(&self) -> f32 {
+        self.extent().max_element()
+    }
+
+    /// Index (0, 1, 2) of the longest axis; ties go to the lowest index.
+    #[inline]
+    pub fn longest_axis(&self) -> usize {
+        let e = self.extent();
+        if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// Volume (0 for empty or flat boxes).
+    #[inline]
+    pub fn volume(&self) -> f32 {
+        let e = self.extent();
+        e.x * e.y * e.z
+    }
+
+    /// Volume in f64 (for sums over many boxes).
+    #[inline]
+    pub fn volume_f64(&self) -> f64 {
+        let e = self.extent();
+        e.x as f64 * e.y as f64 * e.z as f64
+    }
+
+    /// Surface area (0 for the empty box).
+    #[inline]
+    pub fn surface_area(&self) -> f32 {
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    /// True when `p` lies inside (boundary included).
+    #[inline]
+    pub fn contains_point(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// True when `b` lies inside this box, allowing a relative slack `rel` of this box's size
+    /// (plus a tiny absolute slack) for f32 rounding.
+    pub fn contains_box(&self, b: &Aabb, rel: f32) -> bool {
+        if b.is_empty() {
+            return true;
+        }
+        let scale = self
+            .min
+            .abs()
+            .max(self.max.abs())
+            .max_element()
+            .max(self.size());
+        let slack = rel * scale + f32::MIN_POSITIVE;
+        (b.min + Vec3::splat(slack)).cmpge(self.min).all()
+            && (b.max - Vec3::splat(slack)).cmple(self.max).all()
+    }
+
+    /// Box grown to a cube of edge `size()` with the same centre.
+    pub fn cube(&self) -> Aabb {
+        let h = Vec3::splat(self.size() * 0.5);
+        let c = self.center();
+        Aabb::new(c - h, c + h)
+    }
+}
+
+/// Area of the triangle (a, b, c).
+#[inline]
+pub fn triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
+    0.5 * (b - a).cross(c - a).length()
+}
+
+/// Area of the triangle (a, b, c) computed in f64.
+#[inline]
+pub fn triangle_area_f64(a: Vec3, b: Vec3, c: Vec3) -> f64 {
+    let a = a.as_dvec3();
+    let b = b.as_dvec3();
+    let c = c.as_dvec3();
+    0.5 * (b - a).cross(c - a).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_basics() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 4.0));
+        assert_eq!(b.size(), 4.0);
+        assert_eq!(b.longest_axis(), 2);
+        assert_eq!(b.volume(), 8.0);
+        assert_eq!(b.surface_area(), 2.0 * (2.0 + 4.0 + 8.0));
+        assert!(Aabb::EMPTY.is_empty());
+        assert_eq!(Aabb::EMPTY.volume(), 0.0);
+        let c = b.cube();
+        assert_eq!(c.extent(), Vec3::splat(4.0));
+        assert!(c.contains_box(&b, 0.0));
+        assert!(!b.contains_box(&c, 1e-6));
+        assert_eq!(triangle_area(Vec3::ZERO, Vec3::X, Vec3::Y), 0.5);
+    }
+}

@@ -1,0 +1,550 @@
+//! The element arena: surface elements (triangle quadtrees, split 1→4 at edge midpoints) and
+//! cluster elements (one per [`ClusterTree`] node), addressed by `u32` ids.
+//!
+//! Layout: ids `0..num_clusters` are the cluster nodes (element id = node id, root 0);
+//! then one root surface element per input triangle (front faces, id
+//! `first_root + tri`); with two-sided surfaces the back faces follow (id
+//! `first_root + num_tris + tri`): a back face is a separate element with reversed winding
+//! and normal, its own radiosity and no emission (emitters emit from the front only).
+//! Subdivided surface elements are appended as refinement creates them, four contiguous
+//! children at a time. A cluster's children are its child clusters followed by the root
+//! surface elements of the surfaces attached to it (both faces when two-sided), stored as a
+//! range of [`Elements::cluster_kids`].
+
+use glam::{DVec3, Vec3};
+use hirad_accel::cluster::{ClusterTree, NONE};
+use hirad_scene::Scene;
+
+/// Kind of an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Surface,
+    Cluster,
+}
+
+/// One element of the hierarchy.
+#[derive(Clone, Debug)]
+pub struct Element {
+    pub kind: Kind,
+    /// Back face of a two-sided surface.
+    pub back: bool,
+    /// Subdivision level below the root surface (0 for roots and clusters).
+    pub level: u16,
+    /// Parent element ([`NONE`] for the root cluster).
+    pub parent: u32,
+    /// Surfaces: id of the first of 4 contiguous children; clusters: offset into
+    /// [`Elements::cluster_kids`]. Meaningless when `num_children == 0`.
+    pub first_child: u32,
+    pub num_children: u32,
+    /// Surfaces: input triangle; clusters: cluster node id.
+    pub tri: u32,
+    /// Corners (surfaces, counter-clockwise around `normal`).
+    pub verts: [Vec3; 3],
+    /// Unit normal (surfaces).
+    pub normal: Vec3,
+    /// Area (surfaces) or total area of the root surfaces inside (clusters).
+    pub area: f32,
+    /// Centroid (surfaces) or area-weighted centroid of the contents (clusters).
+    pub centroid: Vec3,
+    /// Reflectance (surfaces) or area-weighted mean reflectance (clusters).
+    pub rho: Vec3,
+    /// Emitted exitance E = π·L_e (front faces of emitters; zero otherwise).
+    pub emission: Vec3,
+}
+
+/// Share `max(0, n·ŝ)` of a cluster's received irradiance that a surface (centroid, normal)
+/// gets from a source at `src_centroid` under the directional cluster model: `ŝ` points from
+/// the surface's centroid to the source's, and nothing reaches a surface from behind a surface
+/// source (`src_normal`: the source's normal, zero for a cluster source), which keeps the back
+/// faces of two-sided surfaces from receiving what their front faces get.
+#[inline(always)]
+pub fn facing_weight(centroid: Vec3, normal: Vec3, src_centroid: Vec3, src_normal: Vec3) -> f64 {
+    let to = src_centroid - centroid;
+    let c = normal.dot(to);
+    if src_normal.dot(to) > 0.0 || c <= 0.0 {
+        return 0.0;
+    }
+    (c / to.length()) as f64
+}
+
+impl Element {
+    /// True for cluster elements.
+    #[inline]
+    pub fn is_cluster(&self) -> bool {
+        self.kind == Kind::Cluster
+    }
+
+    /// Share of a cluster's received irradiance that this surface gets from source `src`
+    /// under the directional cluster model ([`facing_weight`]).
+    #[inline]
+    pub fn facing_weight(&self, src: &Element) -> f64 {
+        facing_weight(
+            self.centroid,
+            self.normal,
+            src.centroid,
+            src.facing_normal(),
+        )
+    }
+
+    /// The normal for [`facing_weight`]: a surface's own, zero for a cluster.
+    #[inline]
+    pub fn facing_normal(&self) -> Vec3 {
+        match self.kind {
+            Kind::Surface => self.normal,
+            Kind::Cluster => Vec3::ZERO,
+        }
+    }
+
+    /// True when the element has no children yet.
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.num_children == 0
+    }
+}
+
+/// Orientation summary of the surfaces inside a cluster, used to bound the error of the
+/// isotropic cluster model (a cluster's true projected area towards a direction `d` is
+/// `Σ A_k max(0, n_k·d)`, which the model replaces by `Σ A_k / 4`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClusterOrient {
+    /// Area-weighted normal sum `Σ A_k n_k` over the root surface elements inside.
+    pub area_normal: Vec3,
+    /// Cosine of the half-angle of the cone around `area_normal` that holds every normal
+    /// inside (−1 when there is no such cone narrower than the sphere).
+    pub cone_cos: f32,
+    /// Second moment of the normals `M = Σ A_k n_k n_kᵀ` (xx, yy, zz, xy, xz, yz).
+    pub moment: [f32; 6],
+}
+
+impl ClusterOrient {
+    /// Projected area towards the unit direction `d` of a cluster of total area `area`, from
+    /// the spherical-harmonic expansion of `Σ A_k max(0, n_k·d)` to order 2:
+    /// `A/4 + N·d/2 + (5/32)(3 dᵀMd − A)`, clamped at zero. Order 0 alone is the isotropic
+    /// model's `A/4`; the expansion is exact for the order-0 and order-1 parts (the total
+    /// power and its balance between opposite directions), and within `0.094 A` (at grazing
+    /// directions of a flat cluster) of the true projected area.
+    #[inline]
+    pub fn projected_area(&self, area: f64, d: DVec3) -> f64 {
+        let m = self.moment.map(|v| v as f64);
+        let dmd = m[0] * d.x * d.x
+            + m[1] * d.y * d.y
+            + m[2] * d.z * d.z
+            + 2.0 * (m[3] * d.x * d.y + m[4] * d.x * d.z + m[5] * d.y * d.z);
+        let p = 0.25 * area
+            + 0.5 * self.area_normal.as_dvec3().dot(d)
+            + (5.0 / 32.0) * (3.0 * dmd - area);
+        p.max(0.0)
+    }
+}
+
+/// The arena of elements with their radiosity state.
+#[derive(Clone, Debug)]
+pub struct Elements {
+    pub elems: Vec<Element>,
+    /// Children lists of clusters.
+    pub cluster_kids: Vec<u32>,
+    pub num_clusters: u32,
+    /// Id of the root surface element of triangle 0 (front face).
+    pub first_root: u32,
+    /// Number of input triangles.
+    pub num_tris: u32,
+    /// Back faces present.
+    pub two_sided: bool,
+    /// Radiosity B per element (W/m², RGB).
+    pub b: Vec<DVec3>,
+    /// Irradiance gathered through the element's own links in the last gather.
+    pub h: Vec<DVec3>,
+    /// Direct irradiance from the sun and sky (surface elements; zero without them).
+    pub direct: Vec<DVec3>,
+    /// Share of the element's area that receives and emits: not under a coplanar triangle
+    /// nor inside a solid ([`super::overlap::Covers`]); NaN until the solver has computed it
+    /// (new children of a split element).
+    pub open: Vec<f32>,
+    /// Orientation summary per cluster (index = cluster id).
+    pub orient: Vec<ClusterOrient>,
+}
+
+impl Elements {
+    /// Build the cluster and root surface elements of a scene and its tree.
+    pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Elements {
+        let nc = tree.nodes.len() as u32;
+        let nt = scene.num_triangles() as u32;
+        let sides = if two_sided { 2 } else { 1 };
+        let total = nc as usize + (nt as usize) * sides;
+        let mut elems = Vec::with_capacity(total + total / 2);
+        for (id, node) in tree.nodes.iter().enumerate() {
+            elems.push(Element {
+                kind: Kind::Cluster,
+                back: false,
+                level: 0,
+                parent: node.parent,
+                first_child: 0,
+                num_children: 0,
+                tri: id as u32,
+                verts: [Vec3::ZERO; 3],
+                normal: Vec3::ZERO,
+                area: 0.0,
+                centroid: node.bbox.center(),
+                rho: Vec3::ZERO,
+                emission: Vec3::ZERO,
+            });
+        }
+        for side in 0..sides {
+            for t in 0..nt as usize {
+                let [a, b, c] = scene.tri_vertices(t);
+                let m = scene.material_of(t);
+                let (verts, normal, emission) = if side == 0 {
+                    (
+                        [a, b, c],
+                        scene.normals[t],
+                        m.emission * std::f32::consts::PI,
+                    )
+                } else {
+                    ([a, c, b], -scene.normals[t], Vec3::ZERO)
+                };
+                elems.push(Element {
+                    kind: Kind::Surface,
+                    back: side == 1,
+                    level: 0,
+                    parent: tree.surface_node[t],
+                    first_child: 0,
+                    num_children: 0,
+                    tri: t as u32,
+                    verts,
+                    normal,
+                    area: scene.areas[t],
+                    centroid: (a + b + c) / 3.0,
+                    rho: m.rho,
+                    emission,
+                });
+            }
+        }
+        // Children lists of clusters.
+        let mut cluster_kids = Vec::with_capacity(nc as usize + nt as usize * sides);
+        for (id, node) in tree.nodes.iter().enumerate() {
+            let start = cluster_kids.len() as u32;
+            cluster_kids.extend(node.children());
+            for &s in tree.node_surfaces(id as u32) {
+                for side in 0..sides as u32 {
+                    cluster_kids.push(nc + side * nt + s);
+                }
+            }
+            let e = &mut elems[id];
+            e.first_child = start;
+            e.num_children = cluster_kids.len() as u32 - start;
+        }
+        // Cluster area, centroid and reflectance, bottom-up (children have larger ids).
+        let mut acc = vec![(0f64, DVec3::ZERO, DVec3::ZERO); nc as usize];
+        for id in (0..nc as usize).rev() {
+            let (mut a, mut c, mut r) = (0f64, DVec3::ZERO, DVec3::ZERO);
+            let e = &elems[id];
+            for &k in
+                &cluster_kids[e.first_child as usize..(e.first_child + e.num_children) as usize]
+            {
+                if k < nc {
+                    let (ka, kc, kr) = acc[k as usize];
+                    a += ka;
+                    c += kc;
+                    r += kr;
+                } else {
+                    let s = &elems[k as usize];
+                    let sa = s.area as f64;
+                    a += sa;
+                    c += s.centroid.as_dvec3() * sa;
+                    r += s.rho.as_dvec3() * sa;
+                }
+            }
+            acc[id] = (a, c, r);
+            let e = &mut elems[id];
+            e.area = a as f32;
+            if a > 0.0 {
+                e.centroid = (c / a).as_vec3();
+                e.rho = (r / a).as_vec3();
+            }
+        }
+        let orient = cluster_orientation(&elems, &cluster_kids, nc);
+        let n = elems.len();
+        Elements {
+            elems,
+            cluster_kids,
+            num_clusters: nc,
+            first_root: nc,
+            num_tris: nt,
+            two_sided,
+            b: vec![DVec3::ZERO; n],
+            h: vec![DVec3::ZERO; n],
+            direct: vec![DVec3::ZERO; n],
+            open: vec![1.0; n],
+            orient,
+        }
+    }
+
+    /// Number of elements.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.elems.len()
+    }
+
+    /// True when there are no elements (never for a built arena).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.elems.is_empty()
+    }
+
+    /// Number of root surface elements (triangles × faces).
+    #[inline]
+    pub fn num_roots(&self) -> u32 {
+        self.num_tris * if self.two_sided { 2 } else { 1 }
+    }
+
+    /// Ids of the root surface elements.
+    #[inline]
+    pub fn roots(&self) -> std::ops::Range<u32> {
+        self.first_root..self.first_root + self.num_roots()
+    }
+
+    /// Children of an element (cluster kids, or the 4 sub-triangles of a split surface).
+    #[inline]
+    pub fn children(&self, id: u32) -> ChildIter<'_> {
+        let e = &self.elems[id as usize];
+        match e.kind {
+            Kind::Cluster => ChildIter::Slice(
+                self.cluster_kids
+                    [e.first_child as usize..(e.first_child + e.num_children) as usize]
+                    .iter(),
+            ),
+            Kind::Surface => ChildIter::Range(e.first_child..e.first_child + e.num_children),
+        }
+    }
+
+    /// Split surface element `id` into 4 children (midpoint subdivision) unless it already
+    /// has them. The children start with the parent's radiosity.
+    pub fn subdivide(&mut self, id: u32) {
+        let e = &self.elems[id as usize];
+        if e.kind != Kind::Surface || e.num_children > 0 {
+            return;
+        }
+        let [a, b, c] = e.verts;
+        let ab = (a + b) * 0.5;
+        let bc = (b + c) * 0.5;
+        let ca = (c + a) * 0.5;
+        let tris = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]];
+        let first = self.elems.len() as u32;
+        let proto = e.clone();
+        let bparent = self.b[id as usize];
+        for v in tris {
+            self.elems.push(Element {
+                level: proto.level + 1,
+                parent: id,
+                first_child: 0,
+                num_children: 0,
+                verts: v,
+                area: proto.area * 0.25,
+                centroid: (v[0] + v[1] + v[2]) / 3.0,
+                ..proto.clone()
+            });
+            self.b.push(bparent);
+            self.h.push(DVec3::ZERO);
+            self.direct.push(DVec3::ZERO);
+            self.open.push(f32::NAN);
+        }
+        let e = &mut self.elems[id as usize];
+        e.first_child = first;
+        e.num_children = 4;
+    }
+
+    /// The leaf below surface element `id` whose triangle holds point `p` (a point of `id`'s
+    /// triangle): barycentric descent through the midpoint subdivision of [`subdivide`].
+    ///
+    /// [`subdivide`]: Self::subdivide
+    pub fn leaf_at(&self, id: u32, p: Vec3) -> u32 {
+        let Some(mut uvw) = barycentric(&self.elems[id as usize].verts, p) else {
+            return id;
+        };
+        let mut id = id;
+        loop {
+            let e = &self.elems[id as usize];
+            if e.num_children == 0 || e.kind != Kind::Surface {
+                return id;
+            }
+            let (k, next) = child_step(uvw);
+            id = e.first_child + k;
+            uvw = next;
+        }
+    }
+
+    /// Bytes used by the arena (elements, state arrays, cluster lists).
+    pub fn memory_bytes(&self) -> usize {
+        self.elems.capacity() * std::mem::size_of::<Element>()
+            + (self.b.capacity() + self.h.capacity() + self.direct.capacity())
+                * std::mem::size_of::<DVec3>()
+            + self.open.capacity() * 4
+            + self.cluster_kids.capacity() * 4
+            + self.orient.capacity() * std::mem::size_of::<ClusterOrient>()
+    }
+
+    /// Bytes one more element costs.
+    pub const BYTES_PER_ELEMENT: usize =
+        std::mem::size_of::<Element>() + 3 * std::mem::size_of::<DVec3>() + 4;
+
+    /// True when `a` is an ancestor of `b` (or equal).
+    pub fn is_ancestor(&self, a: u32, b: u32) -> bool {
+        let mut x = b;
+        while x != NONE {
+            if x == a {
+                return true;
+            }
+            x = self.elems[x as usize].parent;
+        }
+        false
+    }
+
+    /// Leaf surface elements below `id` (depth-first, children in order).
+    pub fn leaves_of(&self, id: u32, out: &mut Vec<u32>) {
+        let e = &self.elems[id as usize];
+        if e.num_children == 0 {
+            if e.kind == Kind::Surface {
+                out.push(id);
+            }
+            return;
+        }
+        for c in self.children(id) {
+            self.leaves_of(c, out);
+        }
+    }
+}
+
+/// Orientation summaries of the clusters `0..nc`: area-weighted normal sums bottom-up, then
+/// the widest angle between each cluster's mean normal and the normal of any root surface
+/// inside (every root surface walks up its cluster ancestors).
+fn cluster_orientation(elems: &[Element], kids: &[u32], nc: u32) -> Vec<ClusterOrient> {
+    let mut sum = vec![DVec3::ZERO; nc as usize];
+    let mut mom = vec![[0f64; 6]; nc as usize];
+    for id in (0..nc as usize).rev() {
+        let e = &elems[id];
+        let mut acc = DVec3::ZERO;
+        let mut m = [0f64; 6];
+        for &k in &kids[e.first_child as usize..(e.first_child + e.num_children) as usize] {
+            if k < nc {
+                acc += sum[k as usize];
+                for (a, b) in m.iter_mut().zip(&mom[k as usize]) {
+                    *a += b;
+                }
+            } else {
+                let s = &elems[k as usize];
+                let a = s.area as f64;
+                let n = s.normal.as_dvec3();
+                acc += n * a;
+                let t = [
+                    n.x * n.x,
+                    n.y * n.y,
+                    n.z * n.z,
+                    n.x * n.y,
+                    n.x * n.z,
+                    n.y * n.z,
+                ];
+                for (mm, v) in m.iter_mut().zip(t) {
+                    *mm += a * v;
+                }
+            }
+        }
+        sum[id] = acc;
+        mom[id] = m;
+    }
+    let axis: Vec<DVec3> = (0..nc as usize)
+        .map(|id| {
+            let a = elems[id].area as f64;
+            let l = sum[id].length();
+            if a > 0.0 && l > 1e-6 * a {
+                sum[id] / l
+            } else {
+                DVec3::ZERO
+            }
+        })
+        .collect();
+    let mut cos_min = vec![1.0f64; nc as usize];
+    for s in &elems[nc as usize..] {
+        if s.kind != Kind::Surface || s.level != 0 {
+            continue;
+        }
+        let n = s.normal.as_dvec3();
+        let mut c = s.parent;
+        while c != NONE && c < nc {
+            let ax = axis[c as usize];
+            let v = if ax == DVec3::ZERO { -1.0 } else { n.dot(ax) };
+            cos_min[c as usize] = cos_min[c as usize].min(v);
+            c = elems[c as usize].parent;
+        }
+    }
+    (0..nc as usize)
+        .map(|id| ClusterOrient {
+            area_normal: sum[id].as_vec3(),
+            // Rounding margin, so that the cone holds its normals in f32.
+            cone_cos: (cos_min[id] - 1e-5).max(-1.0) as f32,
+            moment: mom[id].map(|v| v as f32),
+        })
+        .collect()
+}
+
+/// Iterator over the children of an element.
+pub enum ChildIter<'a> {
+    Slice(std::slice::Iter<'a, u32>),
+    Range(std::ops::Range<u32>),
+}
+
+impl Iterator for ChildIter<'_> {
+    type Item = u32;
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        match self {
+            ChildIter::Slice(s) => s.next().copied(),
+            ChildIter::Range(r) => r.next(),
+        }
+    }
+}
+
+/// Barycentric coordinates of `p` (a point of the triangle's plane) in triangle `v`; `None`
+/// for a degenerate triangle.
+fn barycentric(v: &[Vec3; 3], p: Vec3) -> Option<(f64, f64, f64)> {
+    let [a, b, c] = v.map(|v| v.as_dvec3());
+    let (e1, e2, q) = (b - a, c - a, p.as_dvec3() - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (q1, q2) = (q.dot(e1), q.dot(e2));
+    let den = d11 * d22 - d12 * d12;
+    if den <= 0.0 {
+        return None;
+    }
+    let v = (d22 * q1 - d12 * q2) / den;
+    let w = (d11 * q2 - d12 * q1) / den;
+    Some((1.0 - v - w, v, w))
+}
+
+/// The child of the midpoint subdivision ([`Elements::subdivide`]: children [a, ab, ca],
+/// [ab, b, bc], [ca, bc, c], [ab, bc, ca]) that holds the point with barycentric coordinates
+/// `(u, v, w)`, and the point's coordinates in that child.
+fn child_step((u, v, w): (f64, f64, f64)) -> (u32, (f64, f64, f64)) {
+    if u >= 0.5 {
+        (0, (2.0 * u - 1.0, 2.0 * v, 2.0 * w))
+    } else if v >= 0.5 {
+        (1, (2.0 * u, 2.0 * v - 1.0, 2.0 * w))
+    } else if w >= 0.5 {
+        (2, (2.0 * u, 2.0 * v, 2.0 * w - 1.0))
+    } else {
+        (3, (1.0 - 2.0 * w, 1.0 - 2.0 * u, 1.0 - 2.0 * v))
+    }
+}
+
+/// The path of point `p` down `levels` levels of the midpoint subdivision of triangle `v`:
+/// the child index at level `i` in bits `2i..2i+2`.
+pub fn quad_path(v: &[Vec3; 3], p: Vec3, levels: u32) -> u32 {
+    let Some(mut uvw) = barycentric(v, p) else {
+        return 0;
+    };
+    let mut path = 0;
+    for i in 0..levels {
+        let (k, next) = child_step(uvw);
+        path |= k << (2 * i);
+        uvw = next;
+    }
+    path
+}

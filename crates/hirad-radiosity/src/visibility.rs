@@ -1,0 +1,152 @@
+//! Visibility between link ends (`--visibility rays|volume|none`).
+//!
+//! `rays` casts each shadow segment through the [`ClusterTree`] with the shared
+//! [`RayCaster`] (paper §3.2.2: one structure for clustering and ray casting). `none` makes
+//! everything mutually visible. `volume` is Sillion's transmittance `τ = exp(−Σ κ_c ℓ_c)`
+//! computed by [`VolumeCaster`] through the same tree. Both leave out the same occluders: the
+//! link's end elements (a cluster's whole subtree: it does not shadow its own exchanges; a
+//! surface itself); every other surface occludes, also inside an end cluster's box.
+
+use super::config::VisibilityMode;
+use glam::Vec3;
+use hirad_accel::cluster::ClusterTree;
+use hirad_accel::ray::volume::{Endpoint, VolumeCaster};
+use hirad_accel::ray::RayCaster;
+use hirad_core::Result;
+use hirad_scene::Scene;
+
+/// Visibility oracle of a solve.
+pub struct Visibility<'a> {
+    mode: VisibilityMode,
+    tree: &'a ClusterTree,
+    caster: RayCaster<'a>,
+    /// Per cluster node: its rank in depth-first pre-order and the rank just past its
+    /// subtree, so that "surface in the subtree of an end" is two comparisons.
+    order: Vec<(u32, u32)>,
+    volume: Option<VolumeCaster<'a>>,
+    /// Volume mode: clusters smaller than `vol_ratio × segment length` act as volumes.
+    pub vol_ratio: f32,
+}
+
+impl<'a> Visibility<'a> {
+    /// Prepare visibility queries of `mode` over `scene` and its `tree`.
+    pub fn new(
+        scene: &'a Scene,
+        tree: &'a ClusterTree,
+        mode: VisibilityMode,
+        vol_ratio: f32,
+    ) -> Result<Self> {
+        Ok(Self {
+            mode,
+            tree,
+            caster: RayCaster::new(scene, tree),
+            order: subtree_ranks(tree),
+            volume: (mode == VisibilityMode::Volume).then(|| VolumeCaster::new(scene, tree)),
+            vol_ratio,
+        })
+    }
+
+    /// The mode in use.
+    pub fn mode(&self) -> VisibilityMode {
+        self.mode
+    }
+
+    /// True when surface `tri` belongs to end `e` (the surface itself, or a surface in the
+    /// subtree of the cluster).
+    #[inline]
+    fn in_end(&self, e: Endpoint, tri: u32) -> bool {
+        match e {
+            Endpoint::None => false,
+            Endpoint::Surface(s) => s == tri,
+            Endpoint::Cluster(c) => {
+                let (lo, hi) = self.order[c as usize];
+                let r = self.order[self.tree.surface_node[tri as usize] as usize].0;
+                lo <= r && r < hi
+            }
+        }
+    }
+
+    /// Fraction of light passing from `x` to `y`: for rays, 0 or 1 from the segment
+    /// `x + t (y − x)`, `t ∈ [t0, t1]`, where any surface but those of the ends `a` and `b`
+    /// (a surface, or every surface in a cluster's subtree) occludes; for volumes, the
+    /// transmittance of the whole segment with the same ends excluded; 1 for `none`.
+    #[inline]
+    pub fn transmittance(
+        &self,
+        x: Vec3,
+        y: Vec3,
+        t0: f32,
+        t1: f32,
+        a: Endpoint,
+        b: Endpoint,
+    ) -> f64 {
+        match (self.mode, &self.volume) {
+            (VisibilityMode::None, _) => 1.0,
+            (VisibilityMode::Volume, Some(v)) => v.transmittance(x, y, self.vol_ratio, a, b) as f64,
+            _ => {
+                let skip = |t: u32| self.in_end(a, t) || self.in_end(b, t);
+                if t0 >= t1 {
+                    1.0
+                } else if self.caster.occluded_except(x, y - x, (t0, t1), &skip) {
+                    0.0
+                } else {
+                    1.0
+                }
+            }
+        }
+    }
+
+    /// Fraction of a distant light (sun, sky direction `dir`, unit length) reaching `origin` on
+    /// surface `tri`: 0 or 1 with rays; with volumes, the transmittance of the segment from
+    /// `origin` to where it leaves the scene (twice the scene's diagonal away), the surface
+    /// itself excluded — so that sun shadows, too, are volumetric (paper Fig. 5).
+    #[inline]
+    pub fn open_to_infinity(&self, origin: Vec3, dir: Vec3, tmin: f32, tri: u32) -> f64 {
+        match (self.mode, &self.volume) {
+            (VisibilityMode::None, _) => 1.0,
+            (VisibilityMode::Volume, Some(v)) => {
+                let root = v.tree.nodes.first().map(|n| n.bbox.size()).unwrap_or(0.0);
+                let far = origin + dir * (2.0 * root * 3f32.sqrt() + 1.0);
+                let start = origin + dir * tmin;
+                v.transmittance(
+                    start,
+                    far,
+                    self.vol_ratio,
+                    Endpoint::Surface(tri),
+                    Endpoint::None,
+                ) as f64
+            }
+            _ => {
+                if self.caster.occluded(origin, dir, tmin, f32::MAX) {
+                    0.0
+                } else {
+                    1.0
+                }
+            }
+        }
+    }
+}
+
+/// Depth-first pre-order rank of every node and the rank just past its subtree.
+fn subtree_ranks(tree: &ClusterTree) -> Vec<(u32, u32)> {
+    let mut out = vec![(0u32, 0u32); tree.nodes.len()];
+    if tree.nodes.is_empty() {
+        return out;
+    }
+    let mut next = 0u32;
+    // (node, children done)
+    let mut stack = vec![(0u32, false)];
+    while let Some((n, done)) = stack.pop() {
+        if done {
+            out[n as usize].1 = next;
+            continue;
+        }
+        out[n as usize].0 = next;
+        next += 1;
+        stack.push((n, true));
+        for c in tree.nodes[n as usize].children().rev() {
+            stack.push((c, false));
+        }
+    }
+    out
+}

@@ -1,0 +1,174 @@
+//! The records a study writes: one per finished unit of work, plus the run's metadata.
+//! Every record is self-describing (scene, strategy, parameters) so results from several
+//! machines can be merged by copying files.
+
+use hirad_accel::cluster::Strategy;
+use hirad_accel::ray::Boxes;
+use serde::{Deserialize, Serialize};
+
+/// Facts about the run that produced a record (`experiments.md`: scene, parameters, version,
+/// commit, threads, machine).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunMeta {
+    pub scene: String,
+    /// Objects (groups) of the scene: 1 for a polygon soup without structure.
+    #[serde(default)]
+    pub scene_objects: usize,
+    pub hirad_version: String,
+    pub git_commit: String,
+    pub threads: usize,
+    pub machine: String,
+    pub cores: usize,
+    pub memory_gb: f64,
+    pub date_unix: u64,
+}
+
+impl RunMeta {
+    /// Metadata of the current process for `scene`.
+    pub fn current(scene: &str) -> RunMeta {
+        let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let machine = cpuinfo
+            .lines()
+            .find(|l| l.starts_with("model name"))
+            .and_then(|l| l.split(':').nth(1))
+            .map(|s| s.trim().to_string())
+            .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+        let meminfo = std::fs::read_to_string("/proc/meminfo").unwrap_or_default();
+        let memory_gb = meminfo
+            .lines()
+            .find(|l| l.starts_with("MemTotal"))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|k| k.parse::<f64>().ok())
+            .map(|kb| kb / 1024.0 / 1024.0)
+            .unwrap_or(0.0);
+        RunMeta {
+            scene: scene.to_string(),
+            scene_objects: 0,
+            hirad_version: hirad_core::VERSION.to_string(),
+            git_commit: git_commit(),
+            threads: rayon::current_num_threads(),
+            machine,
+            cores: std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1),
+            memory_gb,
+            date_unix: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0),
+        }
+    }
+}
+
+static BUILD_COMMIT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// Record the commit the running binary was built from (the `hirad` binary embeds it at build
+/// time: 12 hex digits, `-dirty` when tracked files differed from it). First call wins.
+pub fn set_build_commit(commit: &str) {
+    let _ = BUILD_COMMIT.set(commit.to_string());
+}
+
+/// The commit given to [`set_build_commit`], "unknown" when none was: what run records carry,
+/// never the checkout's HEAD at run time.
+pub fn git_commit() -> String {
+    BUILD_COMMIT
+        .get()
+        .cloned()
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// Cluster statistics and build time of one strategy (experiments.md §1).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClusterRecord {
+    pub meta: RunMeta,
+    pub strategy: Strategy,
+    pub clusters: usize,
+    pub depth_max: usize,
+    pub depth_mean: f64,
+    pub avg_surfaces: f64,
+    pub avg_children: f64,
+    pub branching: f64,
+    pub overlap: f64,
+    pub empty_space: f64,
+    pub tree_bytes: usize,
+    /// Median of the timed builds, milliseconds.
+    pub build_ms: f64,
+}
+
+/// Ray-casting test of one strategy (experiments.md §2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RayRecord {
+    pub meta: RunMeta,
+    pub strategy: Strategy,
+    pub pairs: usize,
+    pub seed: u64,
+    /// Boxes the traversal tested (records written before the choice existed: tight).
+    #[serde(default)]
+    pub boxes: Boxes,
+    pub build_ms: f64,
+    pub query_ms: f64,
+    pub mrays_per_s: f64,
+    pub occluded: usize,
+    pub nodes_per_ray: f64,
+    pub tris_per_ray: f64,
+}
+
+/// One solve of a sweep (experiments.md §4).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolveRecord {
+    pub meta: RunMeta,
+    pub strategy: Strategy,
+    pub refine: String,
+    pub visibility: String,
+    pub eps: f64,
+    pub solve_s: f64,
+    pub elements: usize,
+    pub links: usize,
+    /// Energy gathered through links that involve a cluster, percent.
+    pub cluster_energy_pct: f64,
+    /// RMS ΔE*uv per viewpoint, in the order of the study's viewpoints.
+    pub errors: Vec<f64>,
+    /// Images written (relative to the study directory).
+    pub images: Vec<String>,
+}
+
+impl SolveRecord {
+    /// Mean error over viewpoints.
+    pub fn error(&self) -> f64 {
+        if self.errors.is_empty() {
+            f64::NAN
+        } else {
+            self.errors.iter().sum::<f64>() / self.errors.len() as f64
+        }
+    }
+}
+
+/// A reference image (experiments.md §3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceRecord {
+    pub meta: RunMeta,
+    pub viewpoint: String,
+    pub method: String,
+    pub seconds: f64,
+    pub image: String,
+}
+
+/// One invocation of a study on a directory: what it computed, what it found done and skipped,
+/// and how it ended. A study that was interrupted and resumed has several; their wall times add
+/// up to the study's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    pub meta: RunMeta,
+    /// Unix time the invocation started, seconds.
+    pub started_unix: f64,
+    /// Wall time of the invocation, seconds.
+    pub wall_s: f64,
+    /// Keys of the units computed by this invocation, in order.
+    pub computed: Vec<String>,
+    /// Keys of the units found on disk and skipped.
+    pub skipped: Vec<String>,
+    /// Temporary files of an earlier, killed invocation that were removed at start.
+    pub removed_temp: usize,
+    /// `finished`, `interrupted` or `failed: <message>`.
+    pub outcome: String,
+}

@@ -1,0 +1,630 @@
+//! The study's report (`experiments.md` §6): Markdown and HTML with the tables and plots of
+//! §1–5 and, for each of the paper's findings, what we measured and whether it was reproduced.
+
+use super::records::{ClusterRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
+use super::score::Monotonicity;
+use hirad_accel::cluster::Strategy;
+use hirad_accel::ray::Boxes;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+/// One row of the volumetric-visibility experiment (§5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct VolumeRow {
+    pub strategy: Strategy,
+    pub volume_s: f64,
+    pub exact_s: f64,
+    /// RMS ΔE*uv of the volumetric image against the exact-visibility image.
+    pub error: f64,
+    pub image: String,
+}
+
+/// Everything the report shows.
+#[derive(Clone, Debug, Default)]
+pub struct ReportData {
+    pub meta: RunMeta,
+    pub clusters: Vec<ClusterRecord>,
+    pub rays: Vec<RayRecord>,
+    pub solves: Vec<SolveRecord>,
+    pub volume: Vec<VolumeRow>,
+    /// Plot and image files (relative paths) by section name.
+    pub figures: BTreeMap<String, Vec<String>>,
+    /// Wall time of this invocation, seconds (cached work not counted).
+    pub wall_s: f64,
+    /// Every invocation on the study's directory (a resumed study has several), oldest first.
+    pub runs: Vec<RunRecord>,
+    /// Unit-key prefixes the study was restricted to (`--only`; empty: every unit).
+    pub only: Vec<String>,
+}
+
+impl ReportData {
+    /// Wall time of the study: the sum over its invocations, or this invocation's when none
+    /// was recorded.
+    pub fn total_wall_s(&self) -> f64 {
+        if self.runs.is_empty() {
+            self.wall_s
+        } else {
+            self.runs.iter().map(|r| r.wall_s).sum()
+        }
+    }
+}
+
+/// Verdict on one of the paper's findings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Finding {
+    pub paper: String,
+    pub ours: String,
+    /// `Some(true)` reproduced, `Some(false)` not reproduced, `None` not measured.
+    pub reproduced: Option<bool>,
+}
+
+fn verdict(r: Option<bool>) -> &'static str {
+    match r {
+        Some(true) => "yes",
+        Some(false) => "no",
+        None => "not measured",
+    }
+}
+
+fn by<T>(v: &[T], s: Strategy, f: impl Fn(&T) -> Strategy) -> Option<&T> {
+    v.iter().find(|r| f(r) == s)
+}
+
+/// Solve records grouped per strategy, sorted by decreasing ε.
+pub fn curves(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<&SolveRecord>> {
+    let mut m: BTreeMap<Strategy, Vec<&SolveRecord>> = BTreeMap::new();
+    for s in solves {
+        m.entry(s.strategy).or_default().push(s);
+    }
+    for v in m.values_mut() {
+        v.sort_by(|a, b| b.eps.total_cmp(&a.eps));
+    }
+    m
+}
+
+/// Monotonicity of each strategy's error–ε curve.
+pub fn monotonicity(solves: &[SolveRecord]) -> BTreeMap<Strategy, Monotonicity> {
+    curves(solves)
+        .into_iter()
+        .map(|(s, v)| {
+            let pts: Vec<(f64, f64)> = v.iter().map(|r| (r.eps, r.error())).collect();
+            (s, Monotonicity::of(&pts))
+        })
+        .collect()
+}
+
+/// A curve counts as monotone when the error never rises as ε falls, or when it rises at most
+/// once and Kendall's τ is at least 0.8 (one noisy step out of a clear trend).
+pub fn is_monotone(m: &Monotonicity) -> bool {
+    m.rises == 0 || (m.rises <= 1 && m.kendall_tau.is_some_and(|t| t >= 0.8))
+}
+
+/// The paper's findings next to ours.
+pub fn findings(d: &ReportData) -> Vec<Finding> {
+    let mut out = Vec::new();
+    let c = |s| by(&d.clusters, s, |r| r.strategy);
+    // Branching factors.
+    {
+        let (t, p, o) = (c(Strategy::TfOct), c(Strategy::Proxi), c(Strategy::OkdtP));
+        let (ours, rep) = match (t, p, o) {
+            (Some(t), Some(p), Some(o)) => (
+                format!(
+                    "branching tf-oct {:.2}, okdt-p {:.2}, proxi {:.2}",
+                    t.branching, o.branching, p.branching
+                ),
+                Some(t.branching > o.branching && o.branching > p.branching),
+            ),
+            _ => ("missing strategies".into(), None),
+        };
+        out.push(Finding {
+            paper: "TF-OCT has the highest branching factor, PROXI the lowest, OKDT-P in between (§4.4, Fig. 6)".into(),
+            ours,
+            reproduced: rep,
+        });
+    }
+    // Build times.
+    {
+        let p = c(Strategy::Proxi);
+        let ratio = |s| {
+            c(s).zip(p)
+                .map(|(a, p)| 100.0 * a.build_ms / p.build_ms.max(1e-9))
+        };
+        let (ours, rep) = match (
+            ratio(Strategy::TfOct),
+            ratio(Strategy::Okdt),
+            ratio(Strategy::OkdtP),
+        ) {
+            (Some(t), Some(o), Some(op)) => (
+                format!("tf-oct {t:.1}%, okdt {o:.1}%, okdt-p {op:.1}% of proxi's build time"),
+                Some(t < 1.0 && o < 1.0 && (20.0..=80.0).contains(&op)),
+            ),
+            _ => ("missing strategies".into(), None),
+        };
+        out.push(Finding {
+            paper: "Top-down builds (TF-OCT, OKDT) take < 1% of PROXI's time; OKDT-P 20–80% (§5.2)"
+                .into(),
+            ours,
+            reproduced: rep,
+        });
+    }
+    // Ray casting.
+    {
+        // The paper's strategies: every one but the ray-tracing baseline.
+        let rows: Vec<&RayRecord> = Strategy::ALL
+            .iter()
+            .filter(|&&s| s != Strategy::Sah)
+            .filter_map(|&s| by(&d.rays, s, |r| r.strategy))
+            .collect();
+        let (ours, rep) = if rows.len() >= 2 {
+            let fastest = rows
+                .iter()
+                .max_by(|a, b| a.mrays_per_s.total_cmp(&b.mrays_per_s))
+                .unwrap();
+            let desc = rows
+                .iter()
+                .map(|r| format!("{} {:.3}", r.strategy, r.mrays_per_s))
+                .collect::<Vec<_>>()
+                .join(", ");
+            (
+                format!(
+                    "fastest of the paper's strategies: {} (Mrays/s: {desc})",
+                    fastest.strategy
+                ),
+                Some(fastest.strategy == Strategy::OkdtP),
+            )
+        } else {
+            ("not run".into(), None)
+        };
+        out.push(Finding {
+            paper: "OKDT-P gives the fastest ray casting of the paper's strategies; lower branching casts faster (§4.4)".into(),
+            ours,
+            reproduced: rep,
+        });
+    }
+    // Monotone curves.
+    {
+        let m = monotonicity(&d.solves);
+        let (ours, rep) = if m.is_empty() {
+            ("no sweep".into(), None)
+        } else {
+            let desc = m
+                .iter()
+                .map(|(s, x)| {
+                    format!(
+                        "{s}: {}/{} rises, τ={}",
+                        x.rises,
+                        x.steps,
+                        x.kendall_tau
+                            .map(|t| format!("{t:.2}"))
+                            .unwrap_or("–".into())
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ");
+            let monotone = m.values().filter(|x| is_monotone(x)).count();
+            let soup = d.meta.scene_objects <= 1;
+            let kind = if soup {
+                "polygon soup (no object structure)"
+            } else {
+                "structured scene"
+            };
+            // Structured: reproduced when most curves are monotone; soup: when some are not.
+            let rep = if soup {
+                monotone < m.len()
+            } else {
+                2 * monotone > m.len()
+            };
+            (
+                format!("{kind}: {monotone} of {} curves monotone ({desc})", m.len()),
+                Some(rep),
+            )
+        };
+        out.push(Finding {
+            paper: "Error decreases monotonically with ε on structured scenes (OFFICE, VRLAB); curves are erratic on polygon soups (AIRCRAFT, CAR) (§5.1, Figs. 2–3)".into(),
+            ours,
+            reproduced: rep,
+        });
+    }
+    // Volumetric shadows.
+    {
+        let v = |s| by(&d.volume, s, |r| r.strategy);
+        let order = [
+            Strategy::Proxi,
+            Strategy::OkdtP,
+            Strategy::Okdt,
+            Strategy::TfOct,
+        ];
+        let rows: Vec<&VolumeRow> = order.iter().filter_map(|&s| v(s)).collect();
+        let (ours, rep) = if rows.len() == order.len() {
+            let err_ok = rows.windows(2).all(|w| w[0].error <= w[1].error);
+            let desc = rows
+                .iter()
+                .map(|r| format!("{} ΔE {:.2} in {:.2} s", r.strategy, r.error, r.volume_s))
+                .collect::<Vec<_>>()
+                .join(", ");
+            (desc, Some(err_ok))
+        } else {
+            ("not run on this scene".into(), None)
+        };
+        out.push(Finding {
+            paper: "Volumetric shadow quality PROXI > OKDT-P > OKDT > TF-OCT, times grow in the same order (§5.2, Fig. 5)".into(),
+            ours,
+            reproduced: rep,
+        });
+    }
+    out
+}
+
+fn fig(md: &mut String, d: &ReportData, key: &str) {
+    if let Some(files) = d.figures.get(key) {
+        for f in files.iter().filter(|f| f.ends_with(".png")) {
+            let _ = writeln!(md, "![{key}]({f})\n");
+        }
+    }
+}
+
+/// The report as Markdown.
+pub fn markdown(d: &ReportData) -> String {
+    let mut md = String::new();
+    let m = &d.meta;
+    let _ = writeln!(md, "# hirad study: `{}`\n", m.scene);
+    let _ = writeln!(
+        md,
+        "hirad {} (commit {}), {} threads on {} ({} cores, {:.0} GB). Wall time of the study: {}.\n",
+        m.hirad_version,
+        m.git_commit,
+        m.threads,
+        m.machine,
+        m.cores,
+        m.memory_gb,
+        match (d.total_wall_s(), d.runs.len()) {
+            (w, _) if w <= 0.0 => "not recorded (merged results)".to_string(),
+            (w, n) if n > 1 => format!("{w:.1} s over {n} invocations (see Runs)"),
+            (w, _) => format!("{w:.1} s"),
+        }
+    );
+    if !d.only.is_empty() {
+        let _ = writeln!(
+            md,
+            "Only the units whose key starts with one of these were run: {}.\n",
+            d.only
+                .iter()
+                .map(|k| format!("`{k}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let _ = writeln!(md, "## Findings of the paper, and ours\n");
+    let _ = writeln!(md, "| paper | ours | reproduced |\n|---|---|---|");
+    for f in findings(d) {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} |",
+            f.paper,
+            f.ours,
+            verdict(f.reproduced)
+        );
+    }
+    let _ = writeln!(md, "\n## 1. Cluster statistics and build time\n");
+    let proxi_ms = by(&d.clusters, Strategy::Proxi, |r| r.strategy).map(|r| r.build_ms);
+    let _ = writeln!(
+        md,
+        "| strategy | clusters | depth max | depth mean | surfaces/cluster | children/cluster | branching | overlap | empty space | bytes | build ms | % of proxi |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for r in &d.clusters {
+        let pct = proxi_ms
+            .map(|p| format!("{:.1}", 100.0 * r.build_ms / p.max(1e-9)))
+            .unwrap_or("–".into());
+        let _ =
+            writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {} | {:.1} | {} |",
+            r.strategy, r.clusters, r.depth_max, r.depth_mean, r.avg_surfaces, r.avg_children,
+            r.branching, r.overlap, r.empty_space, r.tree_bytes, r.build_ms, pct
+        );
+    }
+    md.push('\n');
+    fig(&mut md, d, "clusters");
+    fig(&mut md, d, "children");
+    let _ = writeln!(md, "## 2. Ray-casting test\n");
+    let boxes = d.rays.first().map(|r| r.boxes).unwrap_or_default();
+    let _ = writeln!(
+        md,
+        "Batch occlusion, {} boxes ({}).\n",
+        boxes.name(),
+        match boxes {
+            Boxes::Tight => {
+                "each node's box shrunk to its contents, a node's own surfaces behind a box of \
+                 their own, long runs of them split into pieces behind boxes of their own, a \
+                 node with one child and no surfaces passed through; each surface tested at \
+                 its node; `--ray-boxes cluster` for the strategies' own boxes"
+            }
+            Boxes::Nodes => {
+                "each node's box shrunk to its contents, a node's own surfaces behind one box \
+                 of their own, a node with one child and no surfaces passed through; each \
+                 surface tested at its node"
+            }
+            Boxes::Cluster => "the strategies' own boxes, as in the paper",
+        }
+    );
+    let sah = by(&d.rays, Strategy::Sah, |r| r.strategy).map(|r| r.mrays_per_s);
+    let _ = writeln!(
+        md,
+        "| strategy | pairs | build ms | query ms | Mrays/s | vs sah | occluded | nodes/ray | triangles/ray |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for r in &d.rays {
+        let rel = sah
+            .map(|s| format!("{:.2}", r.mrays_per_s / s.max(1e-12)))
+            .unwrap_or("–".into());
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.1} | {:.1} | {:.3} | {} | {} | {:.1} | {:.1} |",
+            r.strategy,
+            r.pairs,
+            r.build_ms,
+            r.query_ms,
+            r.mrays_per_s,
+            rel,
+            r.occluded,
+            r.nodes_per_ray,
+            r.tris_per_ray
+        );
+    }
+    md.push('\n');
+    fig(&mut md, d, "raytime");
+    let _ = writeln!(md, "## 3–4. Time–error sweeps\n");
+    let mono = monotonicity(&d.solves);
+    let _ = writeln!(
+        md,
+        "| strategy | ε | solve s | elements | links | cluster energy % | RMS ΔE*uv |\n|---|---|---|---|---|---|---|"
+    );
+    for (_, rows) in curves(&d.solves) {
+        for r in rows {
+            let _ = writeln!(
+                md,
+                "| {} | {:.3e} | {:.3} | {} | {} | {:.1} | {:.3} |",
+                r.strategy,
+                r.eps,
+                r.solve_s,
+                r.elements,
+                r.links,
+                r.cluster_energy_pct,
+                r.error()
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\nMonotonicity (steps where the error rises as ε falls; Kendall τ between ε and error):\n"
+    );
+    let _ = writeln!(
+        md,
+        "| strategy | rises | steps | Kendall τ |\n|---|---|---|---|"
+    );
+    for (s, x) in &mono {
+        let _ = writeln!(
+            md,
+            "| {s} | {} | {} | {} |",
+            x.rises,
+            x.steps,
+            x.kendall_tau
+                .map(|t| format!("{t:.3}"))
+                .unwrap_or("–".into())
+        );
+    }
+    md.push('\n');
+    fig(&mut md, d, "time_error");
+    fig(&mut md, d, "error_eps");
+    if !d.volume.is_empty() {
+        let _ = writeln!(md, "## 5. Approximate volumetric visibility\n");
+        let _ = writeln!(
+            md,
+            "| strategy | volume s | exact s | speed-up | RMS ΔE*uv vs exact |\n|---|---|---|---|---|"
+        );
+        for r in &d.volume {
+            let _ = writeln!(
+                md,
+                "| {} | {:.3} | {:.3} | {:.2} | {:.3} |",
+                r.strategy,
+                r.volume_s,
+                r.exact_s,
+                r.exact_s / r.volume_s.max(1e-12),
+                r.error
+            );
+        }
+        md.push('\n');
+        for r in &d.volume {
+            let _ = writeln!(md, "![{}]({})\n", r.strategy, r.image);
+        }
+        fig(&mut md, d, "volume");
+    }
+    if !d.runs.is_empty() {
+        let _ = writeln!(md, "## Runs\n");
+        let _ = writeln!(
+            md,
+            "Each invocation on this directory; a rerun skips the units already on disk.\n"
+        );
+        let _ = writeln!(
+            md,
+            "| # | started (unix s) | commit | wall s | computed | skipped | stale temp files removed | outcome |\n|---|---|---|---|---|---|---|---|"
+        );
+        for (i, r) in d.runs.iter().enumerate() {
+            let _ = writeln!(
+                md,
+                "| {} | {:.0} | {} | {:.1} | {} | {} | {} | {} |",
+                i + 1,
+                r.started_unix,
+                r.meta.git_commit,
+                r.wall_s,
+                r.computed.len(),
+                r.skipped.len(),
+                r.removed_temp,
+                r.outcome
+            );
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The paper's findings across several studies (one per scene: a label, such as the study's
+/// directory, and its [`ReportData`] from [`super::run::collect`]): a table of verdicts, study by
+/// study, then what we measured.
+pub fn cross_scene(studies: &[(String, ReportData)]) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# hirad studies: the paper's findings across scenes\n");
+    let names: Vec<String> = studies
+        .iter()
+        .map(|(l, d)| format!("{l} (`{}`)", d.meta.scene))
+        .collect();
+    let _ = writeln!(
+        md,
+        "| finding of the paper | {} |\n|---|{}",
+        names.join(" | "),
+        "---|".repeat(studies.len())
+    );
+    let all: Vec<Vec<Finding>> = studies.iter().map(|(_, d)| findings(d)).collect();
+    let n = all.iter().map(Vec::len).max().unwrap_or(0);
+    for i in 0..n {
+        let paper = all
+            .iter()
+            .find_map(|f| f.get(i))
+            .map(|f| f.paper.clone())
+            .unwrap_or_default();
+        let cells: Vec<&str> = all
+            .iter()
+            .map(|f| verdict(f.get(i).and_then(|f| f.reproduced)))
+            .collect();
+        let _ = writeln!(md, "| {paper} | {} |", cells.join(" | "));
+    }
+    let walls: Vec<String> = studies
+        .iter()
+        .map(|(_, d)| {
+            let w = d.total_wall_s();
+            if w > 0.0 {
+                format!("{w:.0} s ({} invocation(s))", d.runs.len().max(1))
+            } else {
+                "not recorded".into()
+            }
+        })
+        .collect();
+    let _ = writeln!(md, "| wall time of the study | {} |", walls.join(" | "));
+    let _ = writeln!(md, "\n## What we measured\n");
+    for i in 0..n {
+        if let Some(f) = all.iter().find_map(|f| f.get(i)) {
+            let _ = writeln!(md, "**{}**\n", f.paper);
+        }
+        for ((l, _), f) in studies.iter().zip(&all) {
+            if let Some(f) = f.get(i) {
+                let _ = writeln!(md, "- {l}: {} — {}", f.ours, verdict(f.reproduced));
+            }
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The report as a standalone HTML page.
+pub fn html(md: &str, title: &str) -> String {
+    let parser = pulldown_cmark::Parser::new_ext(md, pulldown_cmark::Options::ENABLE_TABLES);
+    let mut body = String::new();
+    pulldown_cmark::html::push_html(&mut body, parser);
+    format!(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{title}</title>\n<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}table{{border-collapse:collapse}}td,th{{border:1px solid #aaa;padding:2px 6px;text-align:right}}img{{max-width:100%}}</style></head><body>\n{body}</body></html>\n"
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn srec(s: Strategy, eps: f64, err: f64) -> SolveRecord {
+        SolveRecord {
+            meta: RunMeta::default(),
+            strategy: s,
+            refine: "bf".into(),
+            visibility: "rays".into(),
+            eps,
+            solve_s: 1.0 / eps,
+            elements: 1,
+            links: 1,
+            cluster_energy_pct: 50.0,
+            errors: vec![err],
+            images: vec![],
+        }
+    }
+
+    #[test]
+    fn monotonicity_finding_depends_on_scene_kind() {
+        // kdt monotone, okdt with two rises (erratic).
+        let mut solves = Vec::new();
+        for (i, e) in [0.8, 0.4, 0.2, 0.1].into_iter().enumerate() {
+            solves.push(srec(Strategy::Kdt, e, 10.0 - i as f64));
+            solves.push(srec(Strategy::Okdt, e, [5.0, 6.0, 4.0, 4.5][i]));
+        }
+        let mut d = ReportData {
+            solves,
+            ..Default::default()
+        };
+        d.meta.scene_objects = 40;
+        let f = &findings(&d)[3];
+        // 1 of 2 monotone is not a majority on a structured scene.
+        assert_eq!(f.reproduced, Some(false), "{f:?}");
+        assert!(f.ours.contains("1 of 2 curves monotone"));
+        d.meta.scene_objects = 1;
+        assert_eq!(findings(&d)[3].reproduced, Some(true));
+        let m = monotonicity(&d.solves);
+        assert_eq!(m[&Strategy::Okdt].rises, 2);
+        assert!(is_monotone(&m[&Strategy::Kdt]));
+    }
+
+    fn crec(s: Strategy, branching: f64, build_ms: f64) -> ClusterRecord {
+        ClusterRecord {
+            meta: RunMeta::default(),
+            strategy: s,
+            clusters: 10,
+            depth_max: 3,
+            depth_mean: 2.0,
+            avg_surfaces: 3.0,
+            avg_children: 2.0,
+            branching,
+            overlap: 0.1,
+            empty_space: 1.0,
+            tree_bytes: 100,
+            build_ms,
+        }
+    }
+
+    #[test]
+    fn findings_judge_branching_and_build_time() {
+        let d = ReportData {
+            clusters: vec![
+                crec(Strategy::TfOct, 6.0, 0.5),
+                crec(Strategy::Okdt, 2.5, 0.8),
+                crec(Strategy::OkdtP, 4.0, 50.0),
+                crec(Strategy::Proxi, 3.0, 100.0),
+            ],
+            ..Default::default()
+        };
+        let f = findings(&d);
+        assert_eq!(f[0].reproduced, Some(true), "{:?}", f[0]);
+        assert_eq!(f[1].reproduced, Some(true), "{:?}", f[1]);
+        assert_eq!(f[2].reproduced, None);
+        assert_eq!(f[3].reproduced, None, "no sweep");
+        let md = markdown(&d);
+        assert!(md.contains("| okdt-p | 10 |"));
+        assert!(md.contains("| 50.0 |"), "{md}");
+        let h = html(&md, "t");
+        assert!(h.contains("<table>") && h.contains("<td>okdt-p</td>"));
+        // Across scenes: one column per study, one row per finding.
+        let mut soup = ReportData::default();
+        soup.meta.scene = "soup".into();
+        let mut d = d;
+        d.meta.scene = "office".into();
+        let x = cross_scene(&[("a".into(), d), ("b".into(), soup)]);
+        assert!(x.contains("| a (`office`) | b (`soup`) |"), "{x}");
+        assert!(x.contains("(§4.4, Fig. 6) | yes | not measured |"), "{x}");
+        assert_eq!(x.matches("\n| ").count(), 1 + 5 + 1, "{x}");
+    }
+}
