@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! hirad — hierarchical radiosity with clustering.
 //!
 //! The system studied in Hasenfratz, Damez, Sillion & Drettakis, *A Practical Analysis of
