@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The paper's experiments as reproducible, resumable sweeps (`experiments.md`).
 //!
 //! Building blocks: [`store`] (one atomically written JSON file per finished unit of work, so a

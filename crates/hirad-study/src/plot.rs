@@ -32,29 +32,41 @@ pub fn strategy_color(s: Strategy) -> RGBColor {
 /// One curve.
 #[derive(Clone, Debug)]
 pub struct Series {
+    /// Legend entry.
     pub name: String,
+    /// Line and marker colour.
     pub color: RGBColor,
+    /// Points (x, y), in drawing order.
     pub points: Vec<(f64, f64)>,
 }
 
 /// A line plot with optional log axes.
 #[derive(Clone, Debug)]
 pub struct LinePlot {
+    /// Title above the plot.
     pub title: String,
+    /// Label of the x axis.
     pub x_label: String,
+    /// Label of the y axis.
     pub y_label: String,
+    /// Logarithmic x axis.
     pub log_x: bool,
+    /// Logarithmic y axis.
     pub log_y: bool,
+    /// The curves.
     pub series: Vec<Series>,
 }
 
 /// A bar chart with one bar per category, its value written above it.
 #[derive(Clone, Debug)]
 pub struct BarPlot {
+    /// Title above the plot.
     pub title: String,
+    /// Label of the value axis.
     pub y_label: String,
     /// Logarithmic value axis (for values spanning orders of magnitude).
     pub log_y: bool,
+    /// Bars in order: label, colour, value.
     pub bars: Vec<(String, RGBColor, f64)>,
 }
 

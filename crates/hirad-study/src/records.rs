@@ -10,16 +10,24 @@ use serde::{Deserialize, Serialize};
 /// commit, threads, machine).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunMeta {
+    /// Scene path or built-in name.
     pub scene: String,
     /// Objects (groups) of the scene: 1 for a polygon soup without structure.
     #[serde(default)]
     pub scene_objects: usize,
+    /// Version of hirad.
     pub hirad_version: String,
+    /// Commit the binary was built from ([`git_commit`]).
     pub git_commit: String,
+    /// Worker threads.
     pub threads: usize,
+    /// CPU model name (the architecture when unknown).
     pub machine: String,
+    /// Cores available to the process.
     pub cores: usize,
+    /// Total memory, GiB.
     pub memory_gb: f64,
+    /// Unix time the record was made, seconds.
     pub date_unix: u64,
 }
 
@@ -80,16 +88,27 @@ pub fn git_commit() -> String {
 /// Cluster statistics and build time of one strategy (experiments.md §1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ClusterRecord {
+    /// The run that made the record.
     pub meta: RunMeta,
+    /// Clustering strategy.
     pub strategy: Strategy,
+    /// Clusters (nodes of the tree).
     pub clusters: usize,
+    /// Largest node depth (root = 0).
     pub depth_max: usize,
+    /// Mean over surfaces of the depth of the node each is attached to.
     pub depth_mean: f64,
+    /// Mean surfaces attached directly, over clusters with at least one.
     pub avg_surfaces: f64,
+    /// Mean child clusters, over clusters with at least one.
     pub avg_children: f64,
+    /// Mean of child clusters + surfaces, over clusters with at least one child cluster.
     pub branching: f64,
+    /// Overlap of sibling boxes relative to their parent's volume, summed.
     pub overlap: f64,
+    /// Volume enclosed by the boxes relative to a volume scale of the geometry.
     pub empty_space: f64,
+    /// Bytes of the tree's arrays.
     pub tree_bytes: usize,
     /// Median of the timed builds, milliseconds.
     pub build_ms: f64,
@@ -98,31 +117,49 @@ pub struct ClusterRecord {
 /// Ray-casting test of one strategy (experiments.md §2).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RayRecord {
+    /// The run that made the record.
     pub meta: RunMeta,
+    /// Clustering strategy.
     pub strategy: Strategy,
+    /// Segments cast.
     pub pairs: usize,
+    /// Seed of the segments.
     pub seed: u64,
     /// Boxes the traversal tested (records written before the choice existed: tight).
     #[serde(default)]
     pub boxes: Boxes,
+    /// Time to build the tree and its caster, milliseconds.
     pub build_ms: f64,
+    /// Time to cast the segments, milliseconds.
     pub query_ms: f64,
+    /// Segments cast per second, millions.
     pub mrays_per_s: f64,
+    /// Segments found occluded.
     pub occluded: usize,
+    /// Mean nodes visited per segment.
     pub nodes_per_ray: f64,
+    /// Mean triangle tests per segment.
     pub tris_per_ray: f64,
 }
 
 /// One solve of a sweep (experiments.md §4).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SolveRecord {
+    /// The run that made the record.
     pub meta: RunMeta,
+    /// Clustering strategy.
     pub strategy: Strategy,
+    /// Refinement oracle (`bf` or `error`).
     pub refine: String,
+    /// Visibility mode of the solve.
     pub visibility: String,
+    /// Relative refinement threshold ε of the solve.
     pub eps: f64,
+    /// Solve time, seconds (the tree built beforehand).
     pub solve_s: f64,
+    /// Elements of the solution.
     pub elements: usize,
+    /// Links of the solution.
     pub links: usize,
     /// Energy gathered through links that involve a cluster, percent.
     pub cluster_energy_pct: f64,
@@ -146,10 +183,15 @@ impl SolveRecord {
 /// A reference image (experiments.md §3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceRecord {
+    /// The run that made the record.
     pub meta: RunMeta,
+    /// Viewpoint (camera name).
     pub viewpoint: String,
+    /// How the image was made (path tracer and its samples per pixel).
     pub method: String,
+    /// Render time, seconds.
     pub seconds: f64,
+    /// PNG of the image, relative to the study directory.
     pub image: String,
 }
 
@@ -158,6 +200,7 @@ pub struct ReferenceRecord {
 /// up to the study's.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RunRecord {
+    /// The run that made the record.
     pub meta: RunMeta,
     /// Unix time the invocation started, seconds.
     pub started_unix: f64,

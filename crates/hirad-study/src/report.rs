@@ -12,21 +12,30 @@ use std::fmt::Write as _;
 /// One row of the volumetric-visibility experiment (§5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumeRow {
+    /// Clustering strategy.
     pub strategy: Strategy,
+    /// Solve time with volumetric visibility, seconds.
     pub volume_s: f64,
+    /// Solve time with exact (ray-cast) visibility, seconds.
     pub exact_s: f64,
     /// RMS ΔE*uv of the volumetric image against the exact-visibility image.
     pub error: f64,
+    /// First image of the volumetric solve, relative to the study directory.
     pub image: String,
 }
 
 /// Everything the report shows.
 #[derive(Clone, Debug, Default)]
 pub struct ReportData {
+    /// The run the report describes.
     pub meta: RunMeta,
+    /// Cluster statistics per strategy (§1).
     pub clusters: Vec<ClusterRecord>,
+    /// Ray-casting tests per strategy (§2).
     pub rays: Vec<RayRecord>,
+    /// Solves of the ε sweeps (§4).
     pub solves: Vec<SolveRecord>,
+    /// Volumetric-visibility rows (§5).
     pub volume: Vec<VolumeRow>,
     /// Plot and image files (relative paths) by section name.
     pub figures: BTreeMap<String, Vec<String>>,
@@ -53,7 +62,9 @@ impl ReportData {
 /// Verdict on one of the paper's findings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Finding {
+    /// What the paper found.
     pub paper: String,
+    /// What this study measured.
     pub ours: String,
     /// `Some(true)` reproduced, `Some(false)` not reproduced, `None` not measured.
     pub reproduced: Option<bool>,
