@@ -13,28 +13,39 @@ use serde::{Deserialize, Serialize};
 /// A validated pinhole view: eye, target, up, vertical field of view and image size.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraView {
+    /// Eye position (scene units).
     pub eye: Vec3,
+    /// Point looked at.
     pub target: Vec3,
+    /// Up direction (need not be unit or orthogonal to the view).
     pub up: Vec3,
     /// Vertical field of view, degrees, in (0, 180).
     pub fov_deg: f32,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
 }
 
 /// Command-line overrides of a scene camera (`--eye --target --up --fov --size`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CameraOverrides {
+    /// Eye position.
     pub eye: Option<Vec3>,
+    /// Point looked at.
     pub target: Option<Vec3>,
+    /// Camera up vector.
     pub up: Option<Vec3>,
+    /// Vertical field of view, degrees.
     pub fov_deg: Option<f32>,
+    /// Image size (width, height), pixels.
     pub size: Option<(u32, u32)>,
 }
 
 /// Orthonormal camera frame and projection constants derived from a [`CameraView`].
 #[derive(Clone, Copy, Debug)]
 pub struct CameraFrame {
+    /// Eye position (scene units).
     pub eye: Vec3,
     /// Unit viewing direction.
     pub forward: Vec3,
@@ -46,7 +57,9 @@ pub struct CameraFrame {
     pub tan_half_y: f32,
     /// tan(fov/2) · width/height: half image width at distance 1.
     pub tan_half_x: f32,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
 }
 

@@ -1,78 +1,37 @@
 //! Final gather: images of a radiosity solution as sharp as a path tracer's, without its noise
 //! in indirect light (the two-pass method of RenderPark and its kind).
 //!
-//! Per pixel, `rays` samples, each: a camera ray jittered in the pixel (stratified) to the first
-//! hit in the scene; the emitted radiance there when the camera sees an emitter's front; direct
-//! light by the path tracer's emitter sampling (a triangle chosen by power, a point on it, both
-//! stratified) with an exact shadow ray, and the sun's shadow ray; indirect light from one
-//! cosine-weighted ray (the samples' directions stratified over the hemisphere) whose hit reads
-//! the solution's radiosity minus the emitted exitance there (direct light is not counted
-//! twice), times ρ/π. Emission that a gather ray hits is combined with the emitter sample by
-//! multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
-//! close to the shading point (corners) from spiking. Rays that leave the scene upwards see the
-//! sky. One-sided surfaces absorb at their back (the path tracer's convention) unless the
-//! solution is two-sided.
-//!
-//! The solution is the mesh `solve` writes (`solution.glb`: leaf elements with per-vertex
-//! radiosity B). [`SolutionLookup`] checks that its triangles lie on the scene's surfaces (one
-//! short ray per triangle, which also tells a two-sided solution by its back-face copies) and
-//! builds a ray accelerator over each half of it (split by the sign of the normal along a
-//! generic direction, so that coinciding triangles facing opposite ways never share one). A
-//! gather ray is cast against the scene (exact geometry and materials, as the path tracer's);
-//! its hit point then finds its element by a short ray along the normal of the side it was hit
-//! on, into the half of the mesh facing that way, and reads B
-//! interpolated from the vertices (what the per-vertex image shows) or the triangle's mean
-//! ([`Lookup`]). So a `.glb` and the scene are enough: nothing is solved again.
-//!
-//! Importance to bright elements ([`GatherOptions::bright`], on by default): solution triangles
-//! far brighter than the mean (lamp housings, lit patches next to a lamp) are also sampled by
-//! area (stratified as the emitter samples) with a shadow ray, combined with the gather rays by multiple importance sampling; on
-//! graz_office it halves the gather's noise at the same time. Measured and left out: shading
-//! close hits by one more bounce instead of the solution (no gain on office or graz_office,
-//! `docs/perf-log.md` 2026-12-03 (6)).
+//! Per pixel sample: a camera ray to the first hit in the scene, direct light by the path
+//! tracer's emitter sampling and the sun, and one cosine-weighted gather ray whose hit reads the
+//! solution's reflected radiosity (B minus the emitted exitance there, so that direct light is
+//! not counted twice); [`Gatherer`] gives the details. The solution is the mesh `solve` writes
+//! (`solution.glb`), matched to the scene's surfaces by [`SolutionLookup`]: a `.glb` and the
+//! scene are enough, nothing is solved again. Bright solution triangles are also sampled by area
+//! ([`GatherOptions::bright`]).
 //!
 //! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`; rows are
 //! rendered in parallel and the image does not depend on the number of threads.
 
+mod bright;
+mod lookup;
+
+pub use lookup::{Lookup, SolutionLookup};
+
 use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
-use super::pathtrace::{alias_table, cosine_sample, power_heuristic, surface_eps, Lights};
+use crate::sample::{cosine_sample, power_heuristic, surface_eps, Lights};
+use bright::Bright;
 use glam::{DVec3, Vec3};
-use hirad_accel::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad_accel::ray::RayCaster;
 use hirad_core::progress::Progress;
 use hirad_core::rng::SplitMix64;
 use hirad_core::{Error, Result};
 use hirad_scene::export::ColoredMesh;
-use hirad_scene::{Material, RawScene, Scene, SceneOptions};
-use rayon::prelude::*;
+use hirad_scene::Scene;
+use lookup::SPLIT;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
 use std::sync::atomic::AtomicBool;
-
-/// How a gather ray reads the solution at its hit.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Lookup {
-    /// Radiosity interpolated from the mesh's vertex values (as the per-vertex image).
-    Vertex,
-    /// The mean of the hit triangle's vertex values (the element constant; the default: as
-    /// good on office, closer to the path tracer on graz_office).
-    #[default]
-    Element,
-}
-
-impl Lookup {
-    /// Parse `vertex` or `element`.
-    pub fn parse(s: &str) -> Result<Lookup> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "vertex" => Ok(Lookup::Vertex),
-            "element" => Ok(Lookup::Element),
-            _ => Err(Error::Config(format!(
-                "gather lookup: vertex or element, got '{s}'"
-            ))),
-        }
-    }
-}
 
 /// Settings of the final gather.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -122,180 +81,19 @@ pub struct GatherStats {
     pub seconds: f64,
 }
 
-/// Generic direction that splits the solution's triangles into two halves by the sign of
-/// `normal · SPLIT`: two coinciding triangles facing opposite ways (the back-face copies of
-/// two-sided solutions, or back-to-back surfaces) never share a half, so a look-up ray along a
-/// normal finds the element facing it. No axis-aligned or common normal is perpendicular to it.
-const SPLIT: Vec3 = Vec3::new(0.267_261_24, 0.534_522_5, 0.801_783_7);
-
-/// One half of the solution mesh, as a scene of its own with an accelerator.
-struct HalfMesh {
-    scene: Scene,
-    tree: ClusterTree,
-    /// Per triangle: the radiosity at its three vertices.
-    colors: Vec<[Vec3; 3]>,
-}
-
-/// A solution mesh (leaf elements with per-vertex radiosity B, W/m²) matched to its scene and
-/// prepared for look-ups by point.
-pub struct SolutionLookup {
-    /// Triangles whose normal has a positive (index 0) or negative (1) component along
-    /// [`SPLIT`].
-    halves: [Option<HalfMesh>; 2],
-    /// Half length of the look-up rays (scene units).
-    delta: f32,
-    /// Solution triangles on the front of a scene surface.
-    pub front: usize,
-    /// Solution triangles on the back of a scene surface only (back-face copies).
-    pub back: usize,
-    /// Solution triangles under which no scene surface was found.
-    pub unmatched: usize,
-    /// Solution triangles of zero area (left out).
-    pub degenerate: usize,
-}
-
-impl SolutionLookup {
-    /// Match the solution mesh `mesh` to `scene` (whose ray caster is `caster`) and build the
-    /// look-up structures. Fails when most of the mesh lies on no surface of the scene (a
-    /// solution of another scene).
-    pub fn new(
-        mesh: &ColoredMesh,
-        scene: &Scene,
-        caster: &RayCaster,
-        lookup: Lookup,
-    ) -> Result<Self> {
-        let nv = mesh.positions.len();
-        if mesh.colors.len() != nv {
-            return Err(Error::Config(format!(
-                "solution mesh has {} colours for {nv} vertices",
-                mesh.colors.len()
-            )));
-        }
-        if let Some(t) = mesh
-            .triangles
-            .iter()
-            .find(|t| t.iter().any(|&v| v as usize >= nv))
-        {
-            return Err(Error::Config(format!(
-                "solution triangle {t:?} uses a vertex out of range ({nv} vertices)"
-            )));
-        }
-        let delta = 5.0 * surface_eps(scene);
-        // Per triangle: 0 front of a scene surface, 1 back only, 2 degenerate, 3 on no surface.
-        let class: Vec<u8> = mesh
-            .triangles
-            .par_iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
-                let cr = (b - a).cross(c - a);
-                let area = 0.5 * cr.length();
-                if area.is_nan() || area <= 0.0 || !cr.normalize_or_zero().is_normalized() {
-                    return 2;
-                }
-                let n = cr.normalize();
-                let centroid = (a + b + c) / 3.0;
-                let facing_away = |tri: u32| scene.normals[tri as usize].dot(n) <= 0.0;
-                for k in [1.0f32, 20.0] {
-                    let o = centroid + n * (delta * k);
-                    let span = (0.0, 2.0 * delta * k);
-                    if caster.occluded_except(o, -n, span, &facing_away) {
-                        return 0;
-                    }
-                    if caster.occluded(o, -n, span.0, span.1) {
-                        return 1;
-                    }
-                }
-                3
-            })
-            .collect();
-        let count = |s: u8| class.iter().filter(|&&x| x == s).count();
-        let (front, back, degenerate, unmatched) = (count(0), count(1), count(2), count(3));
-        let good = mesh.triangles.len() - degenerate;
-        if good == 0 || unmatched * 2 > good {
-            return Err(Error::Config(format!(
-                "the solution does not fit the scene: {unmatched} of {good} solution triangles \
-                 lie on no surface of '{}'",
-                scene.name
-            )));
-        }
-        if unmatched > 0 {
-            tracing::warn!(
-                "gather: {unmatched} of {good} solution triangles lie on no surface of the scene"
-            );
-        }
-        let mut halves: [Option<HalfMesh>; 2] = [None, None];
-        for (h, slot) in halves.iter_mut().enumerate() {
-            let triangles: Vec<[u32; 3]> = mesh
-                .triangles
-                .iter()
-                .zip(&class)
-                .filter(|&(t, &c)| {
-                    if c == 2 {
-                        return false;
-                    }
-                    let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
-                    ((b - a).cross(c - a).dot(SPLIT) > 0.0) == (h == 0)
-                })
-                .map(|(t, _)| *t)
-                .collect();
-            if triangles.is_empty() {
-                continue;
-            }
-            let colors: Vec<[Vec3; 3]> = triangles
-                .iter()
-                .map(|t| {
-                    let c = t.map(|v| mesh.colors[v as usize]);
-                    match lookup {
-                        Lookup::Vertex => c,
-                        Lookup::Element => [(c[0] + c[1] + c[2]) / 3.0; 3],
-                    }
-                })
-                .collect();
-            let n = triangles.len();
-            let raw = RawScene {
-                name: format!("{} solution half {h}", scene.name),
-                positions: mesh.positions.clone(),
-                triangles,
-                tri_material: vec![0; n],
-                tri_object: vec![0; n],
-                objects: Vec::new(),
-                materials: vec![Material::diffuse("solution", Vec3::ZERO)],
-                up: scene.up,
-                ..Default::default()
-            };
-            let sub = Scene::from_raw(raw, &SceneOptions::default())?;
-            if sub.num_triangles() != n {
-                return Err(Error::Config(format!(
-                    "solution half {h}: {} of {n} triangles kept",
-                    sub.num_triangles()
-                )));
-            }
-            let tree = ClusterTree::build(&sub, Strategy::Sah, &ClusterConfig::default());
-            *slot = Some(HalfMesh {
-                scene: sub,
-                tree,
-                colors,
-            });
-        }
-        Ok(SolutionLookup {
-            halves,
-            delta,
-            front,
-            back,
-            unmatched,
-            degenerate,
-        })
-    }
-
-    /// True when the solution has back-face elements (a two-sided solve): at least a quarter
-    /// of its triangles lie on the back of a scene surface only. (A one-sided solve has such
-    /// triangles only where the scene has back-to-back surfaces.)
-    pub fn has_back_faces(&self) -> bool {
-        self.back * 4 >= self.front + self.back
-    }
-}
-
 /// The final gather over a scene, its ray caster and a solution.
+///
+/// Per pixel, `rays` samples, each: a camera ray jittered in the pixel (stratified) to the first
+/// hit in the scene; the emitted radiance there when the camera sees an emitter's front; direct
+/// light by the path tracer's emitter sampling (a triangle chosen by power, a point on it, both
+/// stratified) with an exact shadow ray, and the sun's shadow ray; indirect light from one
+/// cosine-weighted ray (the samples' directions stratified over the hemisphere) whose hit reads
+/// the solution's radiosity minus the emitted exitance there (direct light is not counted
+/// twice), times ρ/π. Emission that a gather ray hits is combined with the emitter sample by
+/// multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
+/// close to the shading point (corners) from spiking. Rays that leave the scene upwards see the
+/// sky. One-sided surfaces absorb at their back (the path tracer's convention) unless the
+/// solution is two-sided.
 pub struct Gatherer<'a> {
     scene: &'a Scene,
     caster: &'a RayCaster<'a>,
@@ -306,113 +104,6 @@ pub struct Gatherer<'a> {
     bright: Option<Bright>,
     eps: f32,
     up: Vec3,
-}
-
-/// Bright solution triangles, sampled by area with probability proportional to their
-/// reflected power `A · mean(B − E)`.
-struct Bright {
-    tris: Vec<BrightTri>,
-    prob: Vec<f64>,
-    alias: Vec<u32>,
-    /// Per half of the solution mesh, per triangle: density per unit area of a bright sample
-    /// on it (0 when not bright).
-    pdf_area: [Vec<f32>; 2],
-}
-
-#[derive(Clone, Copy)]
-struct BrightTri {
-    p: [Vec3; 3],
-    normal: Vec3,
-    colors: [Vec3; 3],
-    pdf_area: f32,
-}
-
-impl Bright {
-    /// The bright triangles of `sol`: reflected radiosity above `factor` × the area-weighted
-    /// mean; `None` when there are none.
-    fn new(sol: &SolutionLookup, scene: &Scene, caster: &RayCaster, factor: f32) -> Option<Bright> {
-        // Per half, per triangle: (area, mean reflected radiosity B − E).
-        let per: Vec<Vec<(f32, f32)>> = sol
-            .halves
-            .iter()
-            .map(|half| {
-                let Some(m) = half else { return Vec::new() };
-                (0..m.scene.num_triangles())
-                    .into_par_iter()
-                    .map(|t| {
-                        let n = m.scene.normals[t];
-                        let c = m.scene.tri_centroid(t);
-                        let o = c + n * sol.delta;
-                        let emitted = match caster.closest(o, -n, 0.0, 2.0 * sol.delta) {
-                            Some(h) if scene.normals[h.tri as usize].dot(n) > 0.0 => {
-                                scene.material_of(h.tri as usize).emission * PI
-                            }
-                            _ => Vec3::ZERO,
-                        };
-                        let b = m.colors[t].iter().sum::<Vec3>() / 3.0;
-                        let r = (b - emitted).max(Vec3::ZERO);
-                        (m.scene.areas[t], (r.x + r.y + r.z) / 3.0)
-                    })
-                    .collect()
-            })
-            .collect();
-        let (mut sa, mut sr) = (0.0f64, 0.0f64);
-        for v in &per {
-            for &(a, r) in v {
-                sa += a as f64;
-                sr += (a * r) as f64;
-            }
-        }
-        let threshold = (factor as f64 * sr / sa.max(1e-300)) as f32;
-        let mut ids = Vec::new();
-        let mut power = Vec::new();
-        for (h, v) in per.iter().enumerate() {
-            for (t, &(a, r)) in v.iter().enumerate() {
-                if r > threshold && r > 0.0 {
-                    ids.push((h, t));
-                    power.push(a as f64 * r as f64);
-                }
-            }
-        }
-        let total: f64 = power.iter().sum();
-        if ids.is_empty() || total.is_nan() || total <= 0.0 {
-            return None;
-        }
-        let mut pdf_area = [vec![0.0f32; per[0].len()], vec![0.0f32; per[1].len()]];
-        let tris = ids
-            .iter()
-            .map(|&(h, t)| {
-                let m = sol.halves[h].as_ref().unwrap();
-                let pdf = (per[h][t].1 as f64 / total) as f32;
-                pdf_area[h][t] = pdf;
-                BrightTri {
-                    p: m.scene.tri_vertices(t),
-                    normal: m.scene.normals[t],
-                    colors: m.colors[t],
-                    pdf_area: pdf,
-                }
-            })
-            .collect();
-        let (prob, alias) = alias_table(&power, total);
-        Some(Bright {
-            tris,
-            prob,
-            alias,
-            pdf_area,
-        })
-    }
-
-    #[inline]
-    fn pick(&self, u: f64) -> &BrightTri {
-        let n = self.tris.len();
-        let x = u * n as f64;
-        let i = (x as usize).min(n - 1);
-        if x - (i as f64) < self.prob[i] {
-            &self.tris[i]
-        } else {
-            &self.tris[self.alias[i] as usize]
-        }
-    }
 }
 
 #[derive(Clone, Copy, Default)]
@@ -596,54 +287,6 @@ impl<'a> Gatherer<'a> {
             out += rho * self.bright_sample(x, n, br, ub, cnt);
         }
         out
-    }
-
-    /// Radiance (before × ρ) reflected at `x` from one area sample of the bright elements,
-    /// weighted against the gather ray by multiple importance sampling.
-    fn bright_sample(
-        &self,
-        x: Vec3,
-        n: Vec3,
-        br: &Bright,
-        (upick, (u1, u2)): (f64, (f32, f32)),
-        cnt: &mut Counts,
-    ) -> Vec3 {
-        let bt = br.pick(upick);
-        let s = u1.sqrt();
-        let (w0, w1, w2) = (1.0 - s, s * (1.0 - u2), s * u2);
-        let y = bt.p[0] * w0 + bt.p[1] * w1 + bt.p[2] * w2;
-        let to = y - x;
-        let dist2 = to.length_squared();
-        if dist2 <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let w = to / dist2.sqrt();
-        let cos_x = n.dot(w);
-        let cos_y = -bt.normal.dot(w);
-        if cos_x <= 0.0 || cos_y <= 0.0 {
-            return Vec3::ZERO;
-        }
-        // The first surface towards the sample must be the sample's own (its side, emission).
-        cnt.shadow += 1;
-        let Some(h) = self.caster.closest(x, to, 0.0, 1.0 + 1e-3) else {
-            return Vec3::ZERO;
-        };
-        if h.t < 1.0 - 1e-3 {
-            return Vec3::ZERO;
-        }
-        let tri = h.tri as usize;
-        let ng = self.scene.normals[tri];
-        let front = ng.dot(to) < 0.0;
-        if !front && !self.opts.two_sided {
-            return Vec3::ZERO;
-        }
-        let mat = self.scene.material_of(tri);
-        let emitted = if front { mat.emission * PI } else { Vec3::ZERO };
-        let b = bt.colors[0] * w0 + bt.colors[1] * w1 + bt.colors[2] * w2;
-        let l = (b - emitted).max(Vec3::ZERO) / PI;
-        let pdf_sa = bt.pdf_area * dist2 / cos_y;
-        let wmis = power_heuristic(pdf_sa, cos_x / PI);
-        l * (cos_x * cos_y / (PI * dist2 * bt.pdf_area) * wmis)
     }
 
     /// Pixel `(x, y)` of an image `w` pixels wide.

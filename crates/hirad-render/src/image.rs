@@ -10,7 +10,9 @@ use std::path::Path;
 /// comes from the rasteriser or the path tracer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width, pixels.
     pub width: u32,
+    /// Height, pixels.
     pub height: u32,
     /// `width · height` pixels, index `y · width + x`.
     pub pixels: Vec<Vec3>,

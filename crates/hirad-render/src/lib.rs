@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! Images: pinhole camera, z-buffer rasteriser of per-vertex radiance, path-traced references,
 //! EXR and PNG output.
 //!
@@ -19,6 +20,7 @@ pub mod image;
 pub mod metrics;
 pub mod pathtrace;
 pub mod raster;
+mod sample;
 
 pub use camera::{CameraFrame, CameraOverrides, CameraView};
 pub use gather::{render_gather, GatherOptions, GatherStats, Gatherer, Lookup, SolutionLookup};

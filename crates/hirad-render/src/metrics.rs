@@ -1,24 +1,9 @@
 //! Image error: linear sRGB → XYZ → CIELUV, RMS ΔE*uv against a reference (`experiments.md` §3).
 //!
-//! Definitions (all in f64):
-//! - Colour space: pixels are linear RGB with sRGB primaries (x,y) = R (0.64, 0.33),
-//!   G (0.30, 0.60), B (0.15, 0.06) and white D65 with XYZ (0.95047, 1, 1.08883); the RGB → XYZ
-//!   matrix is derived from those primaries (the same derivation as the `palette` crate).
-//!   Negative channel values are clamped to 0 before the conversion; non-finite pixels are an
-//!   error.
-//! - White: D65 scaled so that `Yn` is the 99th percentile of the reference's Y, by the
-//!   nearest-rank method: with the N values of Y sorted ascending (`v[0] ≤ … ≤ v[N−1]`),
-//!   `Yn = v[⌈0.99·N⌉ − 1]` (`⌈0.99·N⌉` computed exactly in integers as `(99·N + 99) / 100`).
-//!   If that is 0 the largest Y is used, and if the reference is entirely black, `Yn = 1`.
-//!   Pixels brighter than Yn are not clipped (their L* exceeds 100).
-//! - CIELUV (CIE 15): `L* = 116 (Y/Yn)^⅓ − 16` for `Y/Yn > (6/29)³`, else `(29/3)³ Y/Yn`;
-//!   `u* = 13 L* (u′ − u′n)`, `v* = 13 L* (v′ − v′n)`, `u′ = 4X/(X+15Y+3Z)`,
-//!   `v′ = 9Y/(X+15Y+3Z)`; black (X+15Y+3Z = 0) is (0, 0, 0).
-//! - ΔE*uv per pixel: Euclidean distance of (L*, u*, v*). The image error is the RMS over
-//!   pixels, `√(Σ ΔE² / N)` (the L2 norm of the difference image over √N, independent of the
-//!   resolution); also the maximum and the mean ΔE.
-//! - Relative RMSE in linear RGB: `√(Σ_pixels Σ_channels (a − r)²) / √(Σ r²)` (0 when both are
-//!   black, infinite when only the reference is black).
+//! Pixels are linear RGB with sRGB primaries and a D65 white ([`srgb_to_xyz_matrix`]); the
+//! white's luminance `Yn` is taken from the reference ([`white_luminance`]); CIELUV as in CIE 15
+//! ([`xyz_to_luv`]). [`compare`] gives the RMS, largest and mean ΔE*uv and the relative RMSE
+//! ([`ImageError`] has the definitions). All arithmetic is in f64.
 //!
 //! Because `Yn` comes from the reference, `diff(a, r)` and `diff(r, a)` differ in general; for a
 //! fixed white ([`compare_with_white`]) ΔE is symmetric.
@@ -33,6 +18,12 @@ use serde::{Deserialize, Serialize};
 pub const D65: DVec3 = DVec3::new(0.95047, 1.0, 1.08883);
 
 /// The linear sRGB → XYZ matrix (Y of white = 1), derived from the sRGB primaries and D65.
+///
+/// Pixels are linear RGB with sRGB primaries (x,y) = R (0.64, 0.33),
+/// G (0.30, 0.60), B (0.15, 0.06) and white D65 with XYZ (0.95047, 1, 1.08883); the RGB → XYZ
+/// matrix is derived from those primaries (the same derivation as the `palette` crate).
+/// Negative channel values are clamped to 0 before the conversion; non-finite pixels are an
+/// error.
 pub fn srgb_to_xyz_matrix() -> DMat3 {
     let xyz_of = |x: f64, y: f64| DVec3::new(x / y, 1.0, (1.0 - x - y) / y);
     let m = DMat3::from_cols(xyz_of(0.64, 0.33), xyz_of(0.30, 0.60), xyz_of(0.15, 0.06));
@@ -47,6 +38,10 @@ pub fn linear_srgb_to_xyz(m: &DMat3, rgb: DVec3) -> DVec3 {
 }
 
 /// XYZ → CIELUV relative to the white `white` (XYZ of the reference white).
+///
+/// CIE 15: `L* = 116 (Y/Yn)^⅓ − 16` for `Y/Yn > (6/29)³`, else `(29/3)³ Y/Yn`;
+/// `u* = 13 L* (u′ − u′n)`, `v* = 13 L* (v′ − v′n)`, `u′ = 4X/(X+15Y+3Z)`,
+/// `v′ = 9Y/(X+15Y+3Z)`; black (X+15Y+3Z = 0) is (0, 0, 0).
 pub fn xyz_to_luv(xyz: DVec3, white: DVec3) -> DVec3 {
     const EPS: f64 = 216.0 / 24389.0; // (6/29)^3
     const KAPPA: f64 = 24389.0 / 27.0; // (29/3)^3
@@ -109,7 +104,13 @@ pub fn percentile_nearest_rank(values: &[f64], p: u32) -> Option<f64> {
     Some(*kth)
 }
 
-/// The white luminance Yn of a reference image (see the module docs).
+/// The white luminance Yn of a reference image.
+///
+/// The white is D65 scaled so that `Yn` is the 99th percentile of the reference's Y, by the
+/// nearest-rank method: with the N values of Y sorted ascending (`v[0] ≤ … ≤ v[N−1]`),
+/// `Yn = v[⌈0.99·N⌉ − 1]` (`⌈0.99·N⌉` computed exactly in integers as `(99·N + 99) / 100`).
+/// If that is 0 the largest Y is used, and if the reference is entirely black, `Yn = 1`.
+/// Pixels brighter than Yn are not clipped (their L* exceeds 100).
 pub fn white_luminance(reference: &Image) -> f64 {
     let m = srgb_to_xyz_matrix();
     let row = m.row(1);
@@ -131,6 +132,13 @@ pub fn white_luminance(reference: &Image) -> f64 {
 }
 
 /// Error of an image against a reference.
+///
+/// ΔE*uv per pixel: Euclidean distance of (L*, u*, v*). The image error is the RMS over
+/// pixels, `√(Σ ΔE² / N)` (the L2 norm of the difference image over √N, independent of the
+/// resolution); also the maximum and the mean ΔE.
+///
+/// Relative RMSE in linear RGB: `√(Σ_pixels Σ_channels (a − r)²) / √(Σ r²)` (0 when both are
+/// black, infinite when only the reference is black).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ImageError {
     /// RMS over pixels of ΔE*uv.
@@ -139,14 +147,16 @@ pub struct ImageError {
     pub max_delta_e: f64,
     /// Mean per-pixel ΔE*uv.
     pub mean_delta_e: f64,
-    /// Relative RMSE in linear RGB (module docs).
+    /// Relative RMSE in linear RGB (see [`ImageError`]).
     pub rel_rmse: f64,
     /// Mean luminance of the image over that of the reference (energy agreement).
     #[serde(default)]
     pub mean_luminance_ratio: f64,
     /// White luminance Yn used for CIELUV.
     pub white_y: f64,
+    /// Width of the images, pixels.
     pub width: u32,
+    /// Height of the images, pixels.
     pub height: u32,
 }
 

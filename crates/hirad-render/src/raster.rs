@@ -1,22 +1,6 @@
 //! Z-buffer rasteriser of a triangle mesh with per-vertex radiance (Gouraud, perspective-correct)
-//! or per-triangle radiance (flat).
-//!
-//! Pipeline:
-//! 1. every vertex goes to clip coordinates `(X, Y, W)` of the [`CameraFrame`] (`W` = depth
-//!    along the viewing direction);
-//! 2. per triangle (parallel, in triangle order): trivial frustum rejection, facing from the
-//!    world-space normal (one-sided surfaces: back faces are drawn black, culled, or shaded like
-//!    the front, [`BackFaces`]), clipping against the near plane `W = near` and a guard band
-//!    (Sutherland–Hodgman, attributes interpolated linearly in clip space, which is exact), then
-//!    snapping to a fixed-point grid of 1/256 pixel;
-//! 3. binning into bands of rows, then each band is rasterised in parallel: integer edge
-//!    functions with a consistent tie rule (an edge shared by two triangles covers each sample
-//!    exactly once: no cracks), samples at the centres of the supersampled pixels, depth test on
-//!    `1/W` (closest wins, ties keep the earlier triangle; back faces are pushed back by a
-//!    relative 1e-5 so that a coinciding front face always wins), colour interpolated
-//!    perspective-correctly (`Σ bᵢ cᵢ/Wᵢ / Σ bᵢ/Wᵢ`);
-//! 4. the `ss × ss` samples of each pixel are averaged (box filter), uncovered samples count as
-//!    the background.
+//! or per-triangle radiance (flat), with supersampling and near-plane clipping. [`rasterize`]
+//! describes the pipeline; [`render_solution`] draws a radiosity solution as radiance.
 //!
 //! The result does not depend on the number of threads.
 
@@ -91,8 +75,11 @@ pub enum MeshColors<'a> {
 /// A triangle mesh with colours, borrowed.
 #[derive(Clone, Copy, Debug)]
 pub struct RasterMesh<'a> {
+    /// Vertex positions.
     pub positions: &'a [Vec3],
+    /// Triangles as indices into `positions`.
     pub triangles: &'a [[u32; 3]],
+    /// Radiance per vertex or per triangle.
     pub colors: MeshColors<'a>,
 }
 
@@ -163,6 +150,23 @@ struct ClipVert {
 }
 
 /// Rasterise a mesh seen from `view`.
+///
+/// Pipeline:
+/// 1. every vertex goes to clip coordinates `(X, Y, W)` of the [`CameraFrame`] (`W` = depth
+///    along the viewing direction);
+/// 2. per triangle (parallel, in triangle order): trivial frustum rejection, facing from the
+///    world-space normal (one-sided surfaces: back faces are drawn black, culled, or shaded like
+///    the front, [`BackFaces`]), clipping against the near plane `W = near` and a guard band
+///    (Sutherland–Hodgman, attributes interpolated linearly in clip space, which is exact), then
+///    snapping to a fixed-point grid of 1/256 pixel;
+/// 3. binning into bands of rows, then each band is rasterised in parallel: integer edge
+///    functions with a consistent tie rule (an edge shared by two triangles covers each sample
+///    exactly once: no cracks), samples at the centres of the supersampled pixels, depth test on
+///    `1/W` (closest wins, ties keep the earlier triangle; back faces are pushed back by a
+///    relative 1e-5 so that a coinciding front face always wins), colour interpolated
+///    perspective-correctly (`Σ bᵢ cᵢ/Wᵢ / Σ bᵢ/Wᵢ`);
+/// 4. the `ss × ss` samples of each pixel are averaged (box filter), uncovered samples count as
+///    the background.
 pub fn rasterize(mesh: &RasterMesh, view: &CameraView, opts: &RasterOptions) -> Result<Image> {
     rasterize_with_stats(mesh, view, opts).map(|(img, _)| img)
 }
