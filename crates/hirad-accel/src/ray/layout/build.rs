@@ -1,0 +1,294 @@
+//! [`Layout::new`]: lays a cluster tree out for traversal.
+
+use super::encode::{
+    leaf_ref, leaf_run, Group, CHUNK, FIRST, LEAF, LEAF_MAX_START, LEAF_MAX_TRIS, NONE, RUN, SUB,
+};
+use super::faces::{face_bits, flat_bits};
+use super::packets::{put, Packet, Wide, WIDE_MIN};
+use super::run_tree::{eager_run, run_box, Piece, RunTree, CHUNK_MAX};
+use super::{Boxes, Layout};
+use crate::cluster::ClusterTree;
+use hirad_core::geom::Aabb;
+use hirad_scene::Scene;
+
+impl Layout {
+    pub(in crate::ray) fn new(scene: &Scene, tree: &ClusterTree, boxes: Boxes) -> Layout {
+        let n = tree.nodes.len();
+        if n == 0 {
+            return Layout::default();
+        }
+        let nt = scene.num_triangles() as u32;
+        // Children of a node that the layout follows: valid ids greater than the parent's
+        // (true of every laid-out tree; guarantees termination on malformed input).
+        let kids = |id: u32| {
+            tree.nodes[id as usize]
+                .children()
+                .filter(move |&c| (c as usize) < n && c > id)
+        };
+        let surfs = |id: u32| {
+            let node = &tree.nodes[id as usize];
+            let end =
+                (node.first_surface as usize + node.num_surfaces as usize).min(tree.surfaces.len());
+            let start = (node.first_surface as usize).min(end);
+            tree.surfaces[start..end]
+                .iter()
+                .copied()
+                .filter(|&s| s < nt)
+        };
+        // Depth-first pre-order.
+        let mut order = Vec::with_capacity(n);
+        let mut seen = vec![false; n];
+        let mut stack = vec![0u32];
+        while let Some(id) = stack.pop() {
+            if std::mem::replace(&mut seen[id as usize], true) {
+                continue;
+            }
+            order.push(id);
+            let mut k: Vec<u32> = kids(id).collect();
+            k.reverse();
+            stack.extend(k);
+        }
+        // Each node's own triangles.
+        let mut own: Vec<Vec<u32>> = (0..n as u32).map(|id| surfs(id).collect()).collect();
+        // Boxes of the nodes' own runs and of the nodes (grown to, or tight around, their
+        // contents), children first.
+        let mut run_bound = vec![Aabb::EMPTY; n];
+        let mut bound = vec![Aabb::EMPTY; n];
+        let mut run_faces = vec![0u8; n];
+        let mut node_faces = vec![0u8; n];
+        for &id in order.iter().rev() {
+            let rb = run_box(scene, &own[id as usize]);
+            run_bound[id as usize] = rb;
+            let mut b = match boxes {
+                Boxes::Tight | Boxes::Nodes => rb,
+                Boxes::Cluster => {
+                    let mut b = tree.nodes[id as usize].bbox;
+                    b.grow_box(&rb);
+                    b
+                }
+            };
+            for c in kids(id) {
+                let cb = bound[c as usize];
+                b.grow_box(&cb);
+            }
+            bound[id as usize] = b;
+            let tris = || {
+                own[id as usize]
+                    .iter()
+                    .map(|&s| scene.tri_bbox(s as usize))
+                    .map(|t| (t, flat_bits(&t)))
+            };
+            run_faces[id as usize] = face_bits(&rb, tris());
+            let below = kids(id).map(|c| (bound[c as usize], node_faces[c as usize]));
+            node_faces[id as usize] = face_bits(&b, tris().chain(below));
+        }
+        // Whether occlusion tests a node's own triangles at once when their box is hit (in a
+        // free lane of the node).
+        let eager: Vec<bool> = (0..n)
+            .map(|i| {
+                boxes != Boxes::Cluster
+                    && !own[i].is_empty()
+                    && eager_run(scene, &own[i], &run_bound[i])
+            })
+            .collect();
+        // With tight boxes, a run longer than CHUNK_MAX (that is not a leaf's run held in
+        // place) is reordered into pieces behind boxes of their own where that pays.
+        let mut runs: Vec<Option<RunTree>> = vec![None; n];
+        if boxes == Boxes::Tight {
+            use rayon::prelude::*;
+            own.par_iter_mut()
+                .zip(&mut runs)
+                .enumerate()
+                .for_each(|(id, (ids, run))| {
+                    let c = kids(id as u32).count();
+                    if ids.len() > CHUNK_MAX && (c > 0 || ids.len() > LEAF_MAX_TRIS) {
+                        let mut split = ids.clone();
+                        let rt = RunTree::new(scene, &mut split, 4 - c % 4);
+                        let sa = run_bound[id].surface_area() as f64;
+                        if rt.pays(ids.len(), sa, c % 4 != 0 && !eager[id]) {
+                            *ids = split;
+                            *run = Some(rt);
+                        }
+                    }
+                });
+        }
+        // Nodes a ray passes through for free with tight boxes: no triangles of their own and
+        // one child, whose box is theirs (an empty half of a k-d cell). Their parent's lane
+        // refers to the child directly.
+        let pass: Vec<bool> = (0..n)
+            .map(|i| boxes != Boxes::Cluster && own[i].is_empty() && kids(i as u32).count() == 1)
+            .collect();
+        // Pass 1: references, group and triangle positions.
+        let mut refs = vec![NONE; n];
+        let mut tri_pos = vec![0usize; n];
+        let mut sub_pos = vec![0usize; n];
+        let mut ng = 0usize;
+        // Packets and wide packets allocated so far.
+        let mut np = [0usize; 2];
+        // First packet of a run of `t` triangles, in the array its length selects.
+        let alloc = |np: &mut [usize; 2], t: usize| {
+            let (k, size) = if t >= WIDE_MIN { (1, 16) } else { (0, 4) };
+            let start = np[k];
+            np[k] += t.div_ceil(size);
+            start
+        };
+        for &id in &order {
+            let i = id as usize;
+            if pass[i] {
+                continue;
+            }
+            let c = kids(id).count();
+            let t = own[i].len();
+            // Every chunk starts at most `t` packets further on; the node's groups (its children
+            // and top pieces, then fewer groups of pieces than triangles) stay below RUN.
+            let fits =
+                np[0].max(np[1]) + t <= LEAF_MAX_START && ng + c.div_ceil(4) + 1 + t < RUN as usize;
+            if let Some(rt) = runs[i].as_mut().filter(|_| fits) {
+                refs[i] = ng as u32;
+                ng += (c + rt.top.len()).div_ceil(4);
+                sub_pos[i] = ng;
+                ng += rt.subs.len();
+                let mut set = |p: &mut Piece| {
+                    p.r = match p.sub {
+                        Some(j) => (sub_pos[i] + j) as u32,
+                        None => leaf_ref(alloc(&mut np, p.range.len()), p.range.len()) | CHUNK,
+                    }
+                };
+                rt.top.iter_mut().for_each(&mut set);
+                rt.subs.iter_mut().flatten().for_each(&mut set);
+                continue;
+            }
+            runs[i] = None;
+            let start = alloc(&mut np, t);
+            tri_pos[i] = start;
+            if c == 0 && t <= LEAF_MAX_TRIS && start <= LEAF_MAX_START {
+                refs[i] = leaf_ref(start, t);
+            } else {
+                refs[i] = ng as u32;
+                ng += c.div_ceil(4).max(1);
+            }
+        }
+        // Pass 2: fill in.
+        let mut groups = vec![Group::default(); ng];
+        let mut faces = vec![0u32; ng];
+        let empty = Packet {
+            v: [[0.0; 4]; 9],
+            id: [u32::MAX; 4],
+        };
+        let [npk, nw] = np;
+        let mut packets = vec![empty; npk];
+        let mut wide = vec![
+            Wide {
+                v: [[0.0; 16]; 9],
+                id: [u32::MAX; 16],
+            };
+            nw
+        ];
+        // The reference a lane holding node `i` gets: its own, or that of the first node below
+        // it that a ray does not pass through for free (children first).
+        let mut link = refs.clone();
+        for &id in order.iter().rev() {
+            if pass[id as usize] {
+                link[id as usize] = kids(id).map(|c| link[c as usize]).next().unwrap_or(NONE);
+            }
+        }
+        for &id in &order {
+            let i = id as usize;
+            if pass[i] {
+                continue;
+            }
+            let r = refs[i];
+            let ids = &own[i];
+            if r & LEAF == 0 {
+                let g0 = r as usize;
+                let k: Vec<u32> = kids(id).collect();
+                let children = k
+                    .iter()
+                    .map(|&c| (bound[c as usize], link[c as usize], node_faces[c as usize]));
+                // The box, reference and face bits of a piece of the node's own run.
+                let lane_of = |p: &Piece| {
+                    let tris = &ids[p.range.clone()];
+                    let b = run_box(scene, tris);
+                    let items = tris.iter().map(|&s| scene.tri_bbox(s as usize));
+                    (b, p.r, face_bits(&b, items.map(|t| (t, flat_bits(&t)))))
+                };
+                let rt = runs[i].as_ref();
+                let top = rt.into_iter().flat_map(|rt| rt.top.iter().map(lane_of));
+                let first = rt.is_some() && eager[i];
+                let mut lanes = 0usize;
+                for (j, (b, cr, f)) in children.chain(top).enumerate() {
+                    let g = &mut groups[g0 + j / 4];
+                    g.set_lane(j % 4, &b, cr);
+                    if first && j >= k.len() {
+                        g.eager |= FIRST << (j % 4);
+                    }
+                    faces[g0 + j / 4] |= (f as u32) << (8 * (j % 4));
+                    lanes += 1;
+                }
+                for (j, sub) in rt.iter().flat_map(|rt| rt.subs.iter().enumerate()) {
+                    let at = sub_pos[i] + j;
+                    for (lane, p) in sub.iter().enumerate() {
+                        let (b, cr, f) = lane_of(p);
+                        groups[at].set_lane(lane, &b, cr);
+                        faces[at] |= (f as u32) << (8 * lane);
+                    }
+                    groups[at].num_groups = 1;
+                    groups[at].run = SUB;
+                }
+                let num_groups = lanes.div_ceil(4).max(1);
+                let nt = if runs[i].is_some() { 0 } else { ids.len() };
+                // The run gets a lane of its own when the last group has one free (a node
+                // without children has no box to spare: its run is its box).
+                let run_lane = boxes != Boxes::Cluster
+                    && nt > 0
+                    && !k.len().is_multiple_of(4)
+                    && ng < RUN as usize;
+                let at = if run_lane { g0 + num_groups - 1 } else { g0 };
+                let g = &mut groups[at];
+                g.tri_start = tri_pos[i] as u32;
+                g.num_tris = nt as u32;
+                if run_lane {
+                    let lane = k.len() % 4;
+                    g.set_lane(lane, &run_bound[i], RUN | at as u32);
+                    faces[at] |= (run_faces[i] as u32) << (8 * lane);
+                    g.run = 1 << lane;
+                    if eager[i] {
+                        g.eager = 1 << lane;
+                    }
+                }
+                groups[g0].num_groups = num_groups as u32;
+            }
+            let mut store = |ids: &[u32], at: usize| {
+                for (i, &s) in ids.iter().enumerate() {
+                    let tv = scene.tri_vertices(s as usize);
+                    if ids.len() >= WIDE_MIN {
+                        let w = &mut wide[at + i / 16];
+                        put(&mut w.v, &mut w.id, i % 16, tv, s);
+                    } else {
+                        let p = &mut packets[at + i / 4];
+                        put(&mut p.v, &mut p.id, i % 4, tv, s);
+                    }
+                }
+            };
+            match &runs[i] {
+                None => store(ids, tri_pos[i]),
+                Some(rt) => {
+                    for p in rt.top.iter().chain(rt.subs.iter().flatten()) {
+                        if p.sub.is_none() {
+                            store(&ids[p.range.clone()], leaf_run(p.r).0);
+                        }
+                    }
+                }
+            }
+        }
+        let b = &bound[0];
+        Layout {
+            root_box: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
+            root: Some(link[0]),
+            groups,
+            faces,
+            packets,
+            wide,
+        }
+    }
+}

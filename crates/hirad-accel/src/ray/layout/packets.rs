@@ -1,0 +1,227 @@
+//! Triangle storage, four ([`Packet`]) or sixteen ([`Wide`]) to a packet in
+//! structure-of-arrays form, and the tests of a triangle run (SIMD candidate masks, then the
+//! scalar watertight test; AVX-512 for wide packets where the CPU has it).
+
+use super::super::watertight::{
+    candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4,
+};
+use super::Layout;
+
+/// Shortest triangle run stored in [`Wide`] packets.
+pub(in crate::ray) const WIDE_MIN: usize = 9;
+
+/// Sixteen triangles (structure of arrays) and their scene ids (`u32::MAX` in unused lanes).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(in crate::ray) struct Wide {
+    pub v: Tri16,
+    pub id: [u32; 16],
+}
+
+/// Whether the AVX-512 edge test can run here (checked once, then cached by std).
+#[inline(always)]
+pub(super) fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Candidate mask of the lanes `valid` of a wide packet (see
+/// [`candidates4`](super::watertight::candidates4)).
+#[inline(always)]
+pub(super) fn wide_candidates(r: &RayPre, w: &Wide, valid: u32, avx512: bool) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if avx512 {
+        // SAFETY: `avx512` is true only when the CPU has AVX-512F (`has_avx512`).
+        return unsafe { super::super::watertight::candidates16_avx512(r, &w.v) } & valid;
+    }
+    let _ = avx512;
+    let mut m = 0;
+    for q in 0..4 {
+        if valid >> (4 * q) & 0xF != 0 {
+            m |= candidates4_at(r, &w.v, 4 * q) << (4 * q);
+        }
+    }
+    m & valid
+}
+
+/// Four triangles (structure of arrays) and their scene ids (`u32::MAX` in unused lanes).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(in crate::ray) struct Packet {
+    pub v: Tri4,
+    pub id: [u32; 4],
+}
+
+/// Mask of the lanes used by packet `k` (of `W` lanes: 4 for a [`Packet`], 16 for a
+/// [`Wide`]) of a run of `n` triangles.
+#[inline(always)]
+pub(in crate::ray) fn lane_mask<const W: usize>(n: usize, k: usize) -> u32 {
+    let rest = n - W * k;
+    if rest >= W {
+        u32::MAX >> (32 - W)
+    } else {
+        (1 << rest) - 1
+    }
+}
+
+impl Layout {
+    /// True when a triangle of the run `(ps, n)` that `skip` does not leave out is hit in
+    /// `[tmin, tmax]`. Adds the triangles tested to `*tested`.
+    #[inline(always)]
+    pub(in crate::ray) fn any_hit<F: Fn(u32) -> bool>(
+        &self,
+        r: &RayPre,
+        (ps, n): (usize, usize),
+        tmin: f32,
+        tmax: f32,
+        tested: &mut u64,
+        skip: &F,
+    ) -> bool {
+        if n >= WIDE_MIN {
+            return self.any_hit_wide(r, ps, n, tmin, tmax, tested, skip);
+        }
+        for k in 0..n.div_ceil(4) {
+            let p = &self.packets[ps + k];
+            let valid = lane_mask::<4>(n, k);
+            *tested += valid.count_ones() as u64;
+            if any_of(
+                r,
+                &p.v,
+                &p.id,
+                candidates4(r, &p.v) & valid,
+                (tmin, tmax),
+                skip,
+            ) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Closest hit among the triangles of the run `(ps, n)` nearer than `*best_t`: updates
+    /// `*best_t` and `*best = (triangle id, u, v)`; equal distances keep the lowest id.
+    #[inline(always)]
+    pub(in crate::ray) fn closest_hit(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        best_t: &mut f32,
+        best: &mut Option<(u32, f32, f32)>,
+    ) {
+        if n >= WIDE_MIN {
+            let avx512 = has_avx512();
+            for k in 0..n.div_ceil(16) {
+                let w = &self.wide[ps + k];
+                let m = wide_candidates(r, w, lane_mask::<16>(n, k), avx512);
+                closest_of(r, &w.v, &w.id, m, tmin, best_t, best);
+            }
+            return;
+        }
+        for k in 0..n.div_ceil(4) {
+            let p = &self.packets[ps + k];
+            let m = candidates4(r, &p.v) & lane_mask::<4>(n, k);
+            closest_of(r, &p.v, &p.id, m, tmin, best_t, best);
+        }
+    }
+
+    /// [`Layout::any_hit`] of a run stored in wide packets.
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn any_hit_wide<F: Fn(u32) -> bool>(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        tmax: f32,
+        tested: &mut u64,
+        skip: &F,
+    ) -> bool {
+        let avx512 = has_avx512();
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let valid = lane_mask::<16>(n, k);
+            *tested += valid.count_ones() as u64;
+            let m = wide_candidates(r, w, valid, avx512);
+            if any_of(r, &w.v, &w.id, m, (tmin, tmax), skip) {
+                return true;
+            }
+        }
+        false
+    }
+}
+
+/// Store triangle `id` with corners `tv` in `lane` of a packet.
+pub(super) fn put<const N: usize>(
+    v: &mut [[f32; N]; 9],
+    ids: &mut [u32; N],
+    lane: usize,
+    tv: [glam::Vec3; 3],
+    id: u32,
+) {
+    for (k, p) in tv.iter().enumerate() {
+        for a in 0..3 {
+            v[3 * k + a][lane] = p[a];
+        }
+    }
+    ids[lane] = id;
+}
+
+/// True when one of the candidate lanes `m` of a packet (four or sixteen wide) whose triangle
+/// `skip` does not leave out is hit in `[tmin, tmax]`.
+#[inline(always)]
+pub(super) fn any_of<const N: usize, F: Fn(u32) -> bool>(
+    r: &RayPre,
+    v: &[[f32; N]; 9],
+    ids: &[u32; N],
+    mut m: u32,
+    (tmin, tmax): (f32, f32),
+    skip: &F,
+) -> bool {
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if !skip(ids[i]) && intersect(r, &tri_of(v, i), tmin, tmax).is_some() {
+            return true;
+        }
+    }
+    false
+}
+
+/// Closest hit among the candidate lanes `m` of a packet (four or sixteen wide) nearer than
+/// `*best_t` (see [`Layout::closest_hit`]).
+#[inline(always)]
+pub(super) fn closest_of<const N: usize>(
+    r: &RayPre,
+    v: &[[f32; N]; 9],
+    ids: &[u32; N],
+    mut m: u32,
+    tmin: f32,
+    best_t: &mut f32,
+    best: &mut Option<(u32, f32, f32)>,
+) {
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        if let Some((t, u, w)) = intersect(r, &tri_of(v, i), tmin, *best_t) {
+            let id = ids[i];
+            let better = match *best {
+                None => true,
+                Some(_) if t < *best_t => true,
+                Some((bid, _, _)) => id < bid,
+            };
+            if better {
+                *best_t = t;
+                *best = Some((id, u, w));
+            }
+        }
+    }
+}

@@ -1,0 +1,239 @@
+//! The 4-wide slab test of a [`Group`]'s boxes ([`Ray4`]), with the branch-free ranking of
+//! the hit lanes that batch occlusion uses.
+
+use super::super::watertight::{RayPre, BOX_SLACK};
+use super::encode::{Group, FIRST};
+
+/// Per-ray data of the 4-wide box test: origin and reciprocal direction broadcast to four
+/// lanes, and for each axis the index of the near and far plane in [`Group::b`] (chosen by
+/// the sign of the direction, so that `0·∞ = NaN` can only come from an origin lying exactly
+/// in a box plane, which the comparisons then ignore, as the scalar [`RayPre::slab`] does).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(16))]
+pub(in crate::ray) struct Ray4 {
+    o: [[f32; 4]; 3],
+    inv: [[f32; 4]; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+    /// Bit `a` set when the direction's component `a` is zero (the ray lies in a plane of
+    /// constant coordinate `a`).
+    in_plane: u32,
+}
+
+impl Ray4 {
+    pub(in crate::ray) fn new(r: &RayPre) -> Ray4 {
+        let mut x = Ray4::default();
+        x.set(r);
+        x
+    }
+
+    /// Take the data of `r`.
+    #[inline(always)]
+    pub(in crate::ray) fn set(&mut self, r: &RayPre) {
+        for a in 0..3 {
+            self.o[a] = [r.o[a]; 4];
+            self.inv[a] = [r.inv[a]; 4];
+            // Plane indices are in 0..6 (RayPre's contract); keep that invariant for the
+            // unchecked loads of `test`.
+            self.near[a] = r.near[a] % 6;
+            self.far[a] = r.far[a] % 6;
+        }
+        self.in_plane = (0..3).filter(|&a| r.d[a] == 0.0).fold(0, |m, a| m | 1 << a);
+    }
+
+    /// Lanes of `g` that the ray only touches along a face: it lies in the plane of a face of
+    /// the lane's box (direction component zero, origin on the face) and everything in the
+    /// lane that touches that plane lies in it (`faces`, from [`face_bits`]; a box flat in
+    /// the plane is one case). Triangles in the plane are coplanar with the ray: the
+    /// watertight test computes all three sheared edge functions as exactly zero (the in-plane
+    /// coordinate is one of the two sheared axes and its shear constant is zero) and reports
+    /// no hit. The others lie strictly on one side of the plane, and the ray misses their
+    /// boxes as it would in a leaf of their own. Skipping these lanes changes no result; it
+    /// keeps a ray running along a floor from visiting every cell standing on the floor that
+    /// it passes (the slab test itself must accept them: the ray touches them).
+    #[inline(always)]
+    fn flat_in_plane(&self, g: &Group, faces: u32) -> u32 {
+        let mut m = 0;
+        for a in 0..3 {
+            if self.in_plane & (1 << a) != 0 {
+                let o = self.o[a][0];
+                for lane in 0..4 {
+                    let f = faces >> (8 * lane);
+                    if (g.b[a][lane] == o && f & (1 << a) != 0)
+                        || (g.b[a + 3][lane] == o && f & (1 << (a + 3)) != 0)
+                    {
+                        m |= 1 << lane;
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Slab test of the four boxes of `g` clipped to `[tmin, tmax]`: bit `i` of the mask is
+    /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit and not ruled out by
+    /// [`Ray4::flat_in_plane`]; `tn` its entry distance.
+    #[inline(always)]
+    pub(in crate::ray) fn test(
+        &self,
+        g: &Group,
+        faces: &u32,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 4]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::*;
+            // SAFETY: SSE and SSE2 are part of the x86_64 baseline; `o`/`inv` are 16-byte
+            // aligned (repr align 16, arrays of four f32 at offsets multiple of 16), the other
+            // loads are unaligned; plane indices are below 6 by construction (`set`).
+            #[allow(unused_unsafe)]
+            unsafe {
+                let mut tn = _mm_set1_ps(tmin);
+                let mut tf = _mm_set1_ps(tmax);
+                for a in 0..3 {
+                    let o = _mm_load_ps(self.o[a].as_ptr());
+                    let inv = _mm_load_ps(self.inv[a].as_ptr());
+                    // `near`/`far` are below 6 (`set`), the length of `g.b`.
+                    let n = _mm_loadu_ps(g.b.get_unchecked(self.near[a]).as_ptr());
+                    let f = _mm_loadu_ps(g.b.get_unchecked(self.far[a]).as_ptr());
+                    let t0 = _mm_mul_ps(_mm_sub_ps(n, o), inv);
+                    let t1 = _mm_mul_ps(_mm_sub_ps(f, o), inv);
+                    // max/min return the second operand when either is NaN: a NaN plane
+                    // distance leaves the running bound unchanged.
+                    tn = _mm_max_ps(t0, tn);
+                    tf = _mm_min_ps(t1, tf);
+                }
+                let hit = _mm_cmple_ps(tn, _mm_mul_ps(tf, _mm_set1_ps(BOX_SLACK)));
+                let mut mask = _mm_movemask_ps(hit) as u32;
+                if self.in_plane != 0 {
+                    mask &= !self.flat_in_plane(g, *faces);
+                }
+                let mut out = [0f32; 4];
+                _mm_storeu_ps(out.as_mut_ptr(), tn);
+                (mask, out)
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let mut mask = 0;
+            let mut out = [0f32; 4];
+            for lane in 0..4 {
+                let mut tn = tmin;
+                let mut tf = tmax;
+                for a in 0..3 {
+                    let t0 = (g.b[self.near[a]][lane] - self.o[a][0]) * self.inv[a][0];
+                    let t1 = (g.b[self.far[a]][lane] - self.o[a][0]) * self.inv[a][0];
+                    tn = if t0 > tn { t0 } else { tn };
+                    tf = if t1 < tf { t1 } else { tf };
+                }
+                if tn <= tf * BOX_SLACK {
+                    mask |= 1 << lane;
+                }
+                out[lane] = tn;
+            }
+            if self.in_plane != 0 {
+                mask &= !self.flat_in_plane(g, *faces);
+            }
+            (mask, out)
+        }
+    }
+
+    /// [`Ray4::test`] for occlusion: the hit mask and, for every lane, its position among the
+    /// hit lanes in push order (farthest entry first, ties: higher lane first), so that the
+    /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
+    /// without data-dependent branches (random rays make them unpredictable).
+    #[inline(always)]
+    pub(in crate::ray) fn test_ranked(
+        &self,
+        g: &Group,
+        faces: &u32,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [u32; 4]) {
+        let (all, tn) = self.test(g, faces, tmin, tmax);
+        let mask = g.split_eager(all).0;
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::*;
+            // SAFETY: SSE2 is part of the x86_64 baseline.
+            #[allow(unused_unsafe)]
+            unsafe {
+                let bits = _mm_setr_epi32(1, 2, 4, 8);
+                let lanes = |m: u32| {
+                    _mm_castsi128_ps(_mm_cmpeq_epi32(
+                        _mm_and_si128(_mm_set1_epi32(m as i32), bits),
+                        bits,
+                    ))
+                };
+                let hit = lanes(mask);
+                // Pieces visited first rank nearest of the lanes hit.
+                let mut tn = _mm_loadu_ps(tn.as_ptr());
+                if g.eager >= FIRST {
+                    tn = _mm_blendv_ps_sse2(
+                        tn,
+                        _mm_set1_ps(-f32::MAX),
+                        lanes((g.eager >> 4) as u32),
+                    );
+                }
+                let t = _mm_blendv_ps_sse2(_mm_set1_ps(f32::NEG_INFINITY), tn, hit);
+                // Rotation k compares lane i with lane (i + k) mod 4, which is a higher lane
+                // exactly for i < 4 - k.
+                let r1 = _mm_shuffle_ps::<0b00_11_10_01>(t, t);
+                let r2 = _mm_shuffle_ps::<0b01_00_11_10>(t, t);
+                let r3 = _mm_shuffle_ps::<0b10_01_00_11>(t, t);
+                let hi1 = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+                let hi2 = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, 0, 0));
+                let hi3 = _mm_castsi128_ps(_mm_setr_epi32(-1, 0, 0, 0));
+                let before = |r: __m128, hi: __m128| {
+                    _mm_castps_si128(_mm_or_ps(
+                        _mm_cmpgt_ps(r, t),
+                        _mm_and_ps(_mm_cmpeq_ps(r, t), hi),
+                    ))
+                };
+                let n = _mm_add_epi32(
+                    _mm_add_epi32(before(r1, hi1), before(r2, hi2)),
+                    before(r3, hi3),
+                );
+                let mut out = [0u32; 4];
+                _mm_storeu_si128(
+                    out.as_mut_ptr() as *mut __m128i,
+                    _mm_sub_epi32(_mm_setzero_si128(), n),
+                );
+                (all, out)
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let t: [f32; 4] = std::array::from_fn(|i| {
+                if mask >> i & 1 == 1 {
+                    if g.eager >> (4 + i) & 1 == 1 {
+                        -f32::MAX
+                    } else {
+                        tn[i]
+                    }
+                } else {
+                    f32::NEG_INFINITY
+                }
+            });
+            let out = std::array::from_fn(|i| {
+                (0..4)
+                    .filter(|&j| j != i && (t[j] > t[i] || (t[j] == t[i] && j > i)))
+                    .count() as u32
+            });
+            (all, out)
+        }
+    }
+}
+
+/// `blendv` with SSE2 only: lanes of `b` where `m` is set, of `a` elsewhere.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn _mm_blendv_ps_sse2(
+    a: core::arch::x86_64::__m128,
+    b: core::arch::x86_64::__m128,
+    m: core::arch::x86_64::__m128,
+) -> core::arch::x86_64::__m128 {
+    use core::arch::x86_64::*;
+    _mm_or_ps(_mm_and_ps(m, b), _mm_andnot_ps(m, a))
+}
