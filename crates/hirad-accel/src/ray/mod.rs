@@ -1,47 +1,20 @@
-//! Ray casting through a [`ClusterTree`] (paper §3.2.2: one
-//! structure for clustering and ray casting).
+//! Ray casting through a [`ClusterTree`] (paper §3.2.2: one structure for clustering and ray
+//! casting): [`RayCaster::occluded`] (any hit) and [`RayCaster::closest`] (first hit) of
+//! segments `origin + t·dir`, `t ∈ [tmin, tmax]`, `dir` not necessarily normalised.
 //!
-//! Interface used by the solver and the renderer: [`RayCaster::occluded`] (any hit) and
-//! [`RayCaster::closest`] (first hit). Segments are `origin + t·dir`, `t ∈ [tmin, tmax]`, `dir`
-//! not necessarily normalised.
-//!
-//! [`RayCaster::new`] lays the tree out for traversal without changing its topology
-//! (`layout.rs`): the children of a node in groups of four boxes in structure-of-arrays form
-//! (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
-//! child reference, the triangles attached to each node (inner nodes included) in packets of
-//! four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap
-//! and a node may have any number of children. The triangle test is watertight
-//! ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
-//! with its f64 hit distance decides every candidate); the box test is conservative
-//! (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
-//! contain their contents exactly: tight around them by default (a node's own triangles
-//! behind boxes of their own, a long run of them split into pieces, a node holding only one
-//! child passed through), or the strategy's boxes grown to their contents
-//! ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
-//! an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
-//! and the watertight test never reports them (`layout.rs`'s `Ray4::flat_in_plane`: a segment
-//! along a floor no longer visits every floor cell it passes). So the result equals a
-//! brute-force loop over every triangle ([`RayCaster::occluded_brute`],
-//! [`RayCaster::closest_brute`]) for any tree, and occluded counts are identical across
-//! strategies.
-//!
-//! The hit children of a group are pushed farthest first (the nearest is visited next), for
-//! occlusion as well; closest-hit queries also skip entries farther than the current hit.
-//! Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
-//! [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
-//! node of each in turn, so that the memory latency of one ray's next node (prefetched at the
-//! end of the step before) overlaps with work on the others; it places the hit children on
-//! its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
-//! the sorted push, whose branches random rays mispredict). Counters ([`RayStats`]) are
-//! compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
-//! no counting cost.
+//! The result equals a brute-force loop over every triangle ([`RayCaster::occluded_brute`],
+//! [`RayCaster::closest_brute`]) for any tree and any [`Boxes`]: the triangle test is
+//! watertight, the box test conservative and the boxes contain their contents exactly, so
+//! occluded counts are identical across strategies.
 //!
 //! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
-//! through the same tree.
+//! through the same tree; [`watertight`] is the triangle test; `layout` stores the tree for
+//! traversal; `stack` is the traversal stack.
 
 mod layout;
 pub mod sample;
+mod stack;
 pub mod volume;
 pub mod watertight;
 
@@ -52,7 +25,7 @@ pub use layout::Boxes;
 use layout::{Layout, Ray4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::mem::MaybeUninit;
+pub(crate) use stack::Stack;
 use watertight::{intersect, RayPre};
 
 /// A ray hit.
@@ -133,82 +106,6 @@ impl RayStats {
     }
 }
 
-/// Traversal stack kept in a fixed array on the machine stack (not initialised), spilling to
-/// the heap only for very deep or very wide trees.
-pub(crate) struct Stack<T: Copy, const N: usize> {
-    buf: [MaybeUninit<T>; N],
-    len: usize,
-    heap: Vec<T>,
-    spilled: bool,
-}
-
-impl<T: Copy, const N: usize> Stack<T, N> {
-    #[inline(always)]
-    pub(crate) fn new() -> Self {
-        Self {
-            buf: [const { MaybeUninit::uninit() }; N],
-            len: 0,
-            heap: Vec::new(),
-            spilled: false,
-        }
-    }
-
-    #[inline(always)]
-    pub(crate) fn push(&mut self, x: T) {
-        if !self.spilled {
-            if self.len < N {
-                self.buf[self.len].write(x);
-                self.len += 1;
-                return;
-            }
-            self.heap.reserve(2 * N);
-            // SAFETY: the first `len` entries were written by `push`.
-            self.heap.extend(
-                self.buf[..self.len]
-                    .iter()
-                    .map(|x| unsafe { x.assume_init() }),
-            );
-            self.spilled = true;
-        }
-        self.heap.push(x);
-    }
-
-    #[inline(always)]
-    pub(crate) fn pop(&mut self) -> Option<T> {
-        if self.spilled {
-            return self.heap.pop();
-        }
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: entries below the old `len` were written by `push`.
-        Some(unsafe { self.buf[self.len].assume_init() })
-    }
-
-    #[inline(always)]
-    fn size(&self) -> usize {
-        if self.spilled {
-            self.heap.len()
-        } else {
-            self.len
-        }
-    }
-
-    /// The `k` topmost entries.
-    #[inline(always)]
-    fn top_mut(&mut self, k: usize) -> &mut [T] {
-        if self.spilled {
-            let l = self.heap.len();
-            &mut self.heap[l - k..]
-        } else {
-            let s = &mut self.buf[self.len - k..self.len];
-            // SAFETY: these entries were written by `push`; MaybeUninit<T> has T's layout.
-            unsafe { &mut *(s as *mut [MaybeUninit<T>] as *mut [T]) }
-        }
-    }
-}
-
 /// Segments per parallel work item of the batch queries.
 const BATCH_CHUNK: usize = 256;
 /// Rays in flight in [`RayCaster::occluded_stream`].
@@ -286,6 +183,34 @@ struct Entry {
 }
 
 /// Ray caster over a scene and one of its cluster trees.
+///
+/// [`RayCaster::new`] lays the tree out for traversal without changing its topology
+/// (`ray/layout/`): the children of a node in groups of four boxes in structure-of-arrays form
+/// (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
+/// child reference, the triangles attached to each node (inner nodes included) in packets of
+/// four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap
+/// and a node may have any number of children. The triangle test is watertight
+/// ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
+/// with its f64 hit distance decides every candidate); the box test is conservative
+/// (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
+/// contain their contents exactly: tight around them by default (a node's own triangles
+/// behind boxes of their own, a long run of them split into pieces, a node holding only one
+/// child passed through), or the strategy's boxes grown to their contents
+/// ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
+/// an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
+/// and the watertight test never reports them (`Ray4::flat_in_plane`: a segment along a
+/// floor no longer visits every floor cell it passes).
+///
+/// The hit children of a group are pushed farthest first (the nearest is visited next), for
+/// occlusion as well; closest-hit queries also skip entries farther than the current hit.
+/// Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
+/// [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
+/// node of each in turn, so that the memory latency of one ray's next node (prefetched at the
+/// end of the step before) overlaps with work on the others; it places the hit children on
+/// its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
+/// the sorted push, whose branches random rays mispredict). Counters ([`RayStats`]) are
+/// compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
+/// no counting cost.
 pub struct RayCaster<'a> {
     pub scene: &'a Scene,
     pub tree: &'a ClusterTree,
