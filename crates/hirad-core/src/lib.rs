@@ -32,7 +32,9 @@ macro_rules! choice {
 
 pub mod error;
 pub mod geom;
+pub mod hash;
 pub mod io;
+pub mod morton;
 pub mod progress;
 pub mod rng;
 

@@ -410,6 +410,7 @@ impl ClusterTree {
 
 pub mod dump;
 pub mod kdt;
+mod knn;
 pub mod obt;
 pub mod okdt;
 pub mod okdt_p;

@@ -1,70 +1,21 @@
 //! Strategy `proxi`: bottom-up proximity clustering after size filtering (Sillion & Drettakis
-//! 1995, as `spec/clustering.md` pins it).
-//!
-//! # Algorithm
-//! Let `s_ref` be the largest surface size (`size` = longest bounding-box edge). Surfaces are
-//! filtered by size into levels: level `k` holds the objects of size in
-//! `[s_ref/2^(k+1), s_ref/2^k)` (zero-size surfaces and surfaces finer than the finest level go
-//! to the finest level, which is the level of the smallest positive size, at most 64). Levels
-//! are processed finest first; level `k` has the nominal object size `c_k = s_ref/2^k`, and
-//! levels `k < 0` (`c_k > s_ref`) continue until a single object remains, the root.
-//!
-//! At level `k` the objects (surfaces of that size plus what the finer levels passed up) are
-//! hashed into a regular grid whose cells have edge `C_k`, the smallest power-of-two multiple of
-//! the global quantisation unit (scene size / 2^21) that is `≥ c_k` (so `c_k ≤ C_k < 2 c_k`
-//! while the grid is finer than the scene). Objects are visited in Morton order of their box
-//! centres; every object not yet grouped at this level seeds a group:
-//! 1. candidates: ungrouped objects in the seed's cell and its 26 neighbours (at most 32 from the
-//!    seed's cell and 8 from each neighbour, in Morton order), of which the 16 whose centres are
-//!    nearest to the seed's are kept;
-//! 2. greedy growth: repeatedly add the candidate that minimises the *volume ratio*
-//!    `ρ_k(G) = V_k(box(G)) / Σ_{o ∈ G} V_k(box(o))` of the grown group, among the candidates
-//!    that keep `ρ_k ≤ 1` (the group's box is no bigger than its members' floored volumes put
-//!    together) and `size(box(G)) ≤ 2 c_k` (the group fits the next coarser level), until the
-//!    group has `max_children` members or no candidate qualifies (ties go to the nearer
-//!    candidate);
-//! 3. a group of two or more objects becomes a cluster (its surfaces attached directly, its
-//!    clusters as children, box = union of the members' boxes, i.e. tight), which is an object
-//!    of level `min(k − 1, level(size))`; a seed left alone is passed to level `k − 1` as is.
-//!
-//! `V_k(b)` is the *floored box volume* `Π_axis max(e_axis, φ c_k)` with `e` the box's edge
-//! lengths and `φ = 1/4`: flat boxes (triangles) and points (coincident or zero-area surfaces)
-//! get a volume instead of zero, so `ρ_k` is always finite and positive. A mesh's neighbouring
-//! triangles have overlapping boxes and group with `ρ_k < 1`; objects much smaller than `c_k`
-//! count as cubes of edge `φ c_k`, so two of them group once their distance is about
-//! `2 φ c_k = c_k / 2`: isolated objects rise through the levels until the grid is coarse enough
-//! for their neighbours. Once `φ c_k` exceeds the subset's size, every box counts as the same
-//! cube, `ρ_k = 1/|G|`, so the coarse levels always merge and the loop ends.
-//!
-//! Every cluster has at most `max_children` members in total (child clusters plus surfaces;
-//! `max_children < 2` is treated as 2). The run is sequential over the grouping itself, which
-//! makes it deterministic; sorting and per-object setup run in parallel with keys that are
-//! unique, so the tree does not depend on the thread count.
-//!
-//! A surface passed up alone for the second time skips the levels at which it cannot be
-//! grouped at all: a group holding it and any other object contains both box centres, so its
-//! size is at least the maximum-norm distance `D` from the surface's box centre to the nearest
-//! other surface's box centre, while groups of level `j` have size `≤ 2 c_j`; the surface goes
-//! straight to the finest level `j ≤ k − 1` with `2 c_j ≥ D` (`D` from a k-d tree over the
-//! surface centres, built only when some surface needs it). Up to f32 rounding at the level
-//! boundary, the skipped levels could not have grouped the surface anyway; the skip only
-//! frees the candidate slots it would have taken there.
-//!
-//! # Cost
-//! Each level sorts its objects (O(m log m)) and visits every object once, with a bounded
-//! number of candidates (hash lookups of 27 cells, at most 16 candidates, at most
-//! `max_children` greedy rounds) and a path-compressed "next ungrouped" skip list. Every group
-//! of ≥ 2 objects removes at least one object, and singletons move one level up (or skip as
-//! above), so the total is O(n log n) expected when objects group within a bounded number of
-//! levels of their own size, as surfaces of meshes do. Scenes of isolated surfaces much
-//! smaller than their spacing cost O(n) per level between the two scales.
+//! 1995). Surfaces are filtered by size into levels; from the finest level up, the objects of
+//! a level (its surfaces and the clusters the finer levels passed up) are hashed into a grid
+//! of cells of about the level's size, and each seed greedily grows a group from its
+//! neighbours while the group stays dense (floored volume ratio ≤ 1) and fits the next level;
+//! groups become clusters, lone objects move one level up, until one object remains. The
+//! algorithm and its cost are given in full on [`build`]; [`build_subset`] re-clusters part of
+//! a scene (`okdt-p`). Generic helpers live elsewhere: Morton codes and the cell hasher in
+//! `hirad_core`, the nearest-neighbour k-d tree in `cluster::knn`.
 
+use super::knn::PointTree;
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use glam::Vec3;
 use hirad_core::geom::Aabb;
+use hirad_core::hash::U64Map;
+use hirad_core::morton::morton;
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap};
-use std::hash::{BuildHasherDefault, Hasher};
+use std::collections::BTreeMap;
 
 /// Bits per axis of the global quantisation grid (Morton codes use 63 bits).
 const GRID_BITS: u32 = 21;
@@ -72,7 +23,7 @@ const GRID_BITS: u32 = 21;
 const MAX_LEVEL: i32 = 64;
 /// `φ`: minimum edge of a box, as a fraction of its size, in the floored volume.
 const VOLUME_FLOOR: f64 = 0.25;
-/// Largest volume ratio `ρ` of a group (see the module docs).
+/// Largest volume ratio `ρ` of a group (see [`build`]).
 const MAX_RATIO: f64 = 1.0;
 /// Candidates taken from the seed's own cell.
 const OWN_CELL_CANDIDATES: usize = 32;
@@ -84,6 +35,64 @@ const MAX_CANDIDATES: usize = 16;
 const PAR_SORT_MIN: usize = 16_384;
 
 /// Build the PROXI tree over every surface.
+///
+/// # Algorithm
+/// Let `s_ref` be the largest surface size (`size` = longest bounding-box edge). Surfaces are
+/// filtered by size into levels: level `k` holds the objects of size in
+/// `[s_ref/2^(k+1), s_ref/2^k)` (zero-size surfaces and surfaces finer than the finest level go
+/// to the finest level, which is the level of the smallest positive size, at most 64). Levels
+/// are processed finest first; level `k` has the nominal object size `c_k = s_ref/2^k`, and
+/// levels `k < 0` (`c_k > s_ref`) continue until a single object remains, the root.
+///
+/// At level `k` the objects (surfaces of that size plus what the finer levels passed up) are
+/// hashed into a regular grid whose cells have edge `C_k`, the smallest power-of-two multiple of
+/// the global quantisation unit (scene size / 2^21) that is `≥ c_k` (so `c_k ≤ C_k < 2 c_k`
+/// while the grid is finer than the scene). Objects are visited in Morton order of their box
+/// centres; every object not yet grouped at this level seeds a group:
+/// 1. candidates: ungrouped objects in the seed's cell and its 26 neighbours (at most 32 from the
+///    seed's cell and 8 from each neighbour, in Morton order), of which the 16 whose centres are
+///    nearest to the seed's are kept;
+/// 2. greedy growth: repeatedly add the candidate that minimises the *volume ratio*
+///    `ρ_k(G) = V_k(box(G)) / Σ_{o ∈ G} V_k(box(o))` of the grown group, among the candidates
+///    that keep `ρ_k ≤ 1` (the group's box is no bigger than its members' floored volumes put
+///    together) and `size(box(G)) ≤ 2 c_k` (the group fits the next coarser level), until the
+///    group has `max_children` members or no candidate qualifies (ties go to the nearer
+///    candidate);
+/// 3. a group of two or more objects becomes a cluster (its surfaces attached directly, its
+///    clusters as children, box = union of the members' boxes, i.e. tight), which is an object
+///    of level `min(k − 1, level(size))`; a seed left alone is passed to level `k − 1` as is.
+///
+/// `V_k(b)` is the *floored box volume* `Π_axis max(e_axis, φ c_k)` with `e` the box's edge
+/// lengths and `φ = 1/4`: flat boxes (triangles) and points (coincident or zero-area surfaces)
+/// get a volume instead of zero, so `ρ_k` is always finite and positive. A mesh's neighbouring
+/// triangles have overlapping boxes and group with `ρ_k < 1`; objects much smaller than `c_k`
+/// count as cubes of edge `φ c_k`, so two of them group once their distance is about
+/// `2 φ c_k = c_k / 2`: isolated objects rise through the levels until the grid is coarse enough
+/// for their neighbours. Once `φ c_k` exceeds the subset's size, every box counts as the same
+/// cube, `ρ_k = 1/|G|`, so the coarse levels always merge and the loop ends.
+///
+/// Every cluster has at most `max_children` members in total (child clusters plus surfaces;
+/// `max_children < 2` is treated as 2). The run is sequential over the grouping itself, which
+/// makes it deterministic; sorting and per-object setup run in parallel with keys that are
+/// unique, so the tree does not depend on the thread count.
+///
+/// A surface passed up alone for the second time skips the levels at which it cannot be
+/// grouped at all: a group holding it and any other object contains both box centres, so its
+/// size is at least the maximum-norm distance `D` from the surface's box centre to the nearest
+/// other surface's box centre, while groups of level `j` have size `≤ 2 c_j`; the surface goes
+/// straight to the finest level `j ≤ k − 1` with `2 c_j ≥ D` (`D` from a k-d tree over the
+/// surface centres, built only when some surface needs it). Up to f32 rounding at the level
+/// boundary, the skipped levels could not have grouped the surface anyway; the skip only
+/// frees the candidate slots it would have taken there.
+///
+/// # Cost
+/// Each level sorts its objects (O(m log m)) and visits every object once, with a bounded
+/// number of candidates (hash lookups of 27 cells, at most 16 candidates, at most
+/// `max_children` greedy rounds) and a path-compressed "next ungrouped" skip list. Every group
+/// of ≥ 2 objects removes at least one object, and singletons move one level up (or skip as
+/// above), so the total is O(n log n) expected when objects group within a bounded number of
+/// levels of their own size, as surfaces of meshes do. Scenes of isolated surfaces much
+/// smaller than their spacing cost O(n) per level between the two scales.
 pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     let all: Vec<u32> = (0..prims.len() as u32).collect();
     let mut t = BuildTree::default();
@@ -151,46 +160,9 @@ impl Grid {
     }
 }
 
-/// Spread the low 21 bits of `v` to every third bit.
-#[inline]
-fn part1by2(v: u32) -> u64 {
-    let mut x = (v as u64) & 0x1f_ffff;
-    x = (x | x << 32) & 0x001f_0000_0000_ffff;
-    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
-}
+type CellMap = U64Map<(u32, u32)>;
 
-/// Morton code of grid coordinates (21 bits each).
-#[inline]
-fn morton(q: [u32; 3]) -> u64 {
-    part1by2(q[0]) | part1by2(q[1]) << 1 | part1by2(q[2]) << 2
-}
-
-/// Multiplicative hasher for cell keys (lookups only; no iteration over the map).
-#[derive(Default)]
-struct CellHasher(u64);
-
-impl Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    fn write_u64(&mut self, v: u64) {
-        let h = (self.0 ^ v).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        self.0 = h ^ (h >> 29);
-    }
-}
-
-type CellMap = HashMap<u64, (u32, u32), BuildHasherDefault<CellHasher>>;
-
-/// Floored box volume `V_k(b)` (see the module docs); `floor_len` is `φ · c_k`.
+/// Floored box volume `V_k(b)` (see [`build`]); `floor_len` is `φ · c_k`.
 #[inline]
 fn floored_volume(b: &Aabb, floor_len: f64) -> f64 {
     let e = b.extent();
@@ -654,85 +626,6 @@ impl<'a> Builder<'a> {
     }
 }
 
-/// Points in an implicit k-d tree (median splits, axes in turn) for nearest-neighbour
-/// distances in the maximum norm.
-struct PointTree {
-    pts: Vec<Vec3>,
-    idx: Vec<u32>,
-}
-
-/// Ranges of at most this many points are scanned linearly.
-const KD_LEAF: usize = 8;
-
-impl PointTree {
-    fn new(pts: Vec<Vec3>) -> Self {
-        let mut idx: Vec<u32> = (0..pts.len() as u32).collect();
-        Self::split(&pts, &mut idx, 0);
-        PointTree { pts, idx }
-    }
-
-    fn split(pts: &[Vec3], idx: &mut [u32], axis: usize) {
-        if idx.len() <= KD_LEAF {
-            return;
-        }
-        let mid = idx.len() / 2;
-        idx.select_nth_unstable_by(mid, |&a, &b| {
-            pts[a as usize][axis]
-                .total_cmp(&pts[b as usize][axis])
-                .then(a.cmp(&b))
-        });
-        let (lo, hi) = idx.split_at_mut(mid);
-        let next = (axis + 1) % 3;
-        if lo.len() + hi.len() >= 4 * 4096 {
-            rayon::join(
-                || Self::split(pts, lo, next),
-                || Self::split(pts, &mut hi[1..], next),
-            );
-        } else {
-            Self::split(pts, lo, next);
-            Self::split(pts, &mut hi[1..], next);
-        }
-    }
-
-    /// Smallest maximum-norm distance from `q` to a point other than point `skip`
-    /// (infinity when there is none).
-    fn nearest(&self, q: Vec3, skip: u32) -> f32 {
-        let mut best = f32::INFINITY;
-        self.search(&self.idx, 0, q, skip, &mut best);
-        best
-    }
-
-    fn search(&self, idx: &[u32], axis: usize, q: Vec3, skip: u32, best: &mut f32) {
-        let dist = |i: u32| (self.pts[i as usize] - q).abs().max_element();
-        if idx.len() <= KD_LEAF {
-            for &i in idx {
-                if i != skip {
-                    *best = best.min(dist(i));
-                }
-            }
-            return;
-        }
-        let mid = idx.len() / 2;
-        let m = idx[mid];
-        if m != skip {
-            *best = best.min(dist(m));
-        }
-        let diff = q[axis] - self.pts[m as usize][axis];
-        let (near, far) = if diff < 0.0 {
-            (&idx[..mid], &idx[mid + 1..])
-        } else {
-            (&idx[mid + 1..], &idx[..mid])
-        };
-        let next = (axis + 1) % 3;
-        self.search(near, next, q, skip, best);
-        // `!(a >= b)` form so that NaN coordinates search both sides.
-        let prune = diff.abs() >= *best;
-        if !prune {
-            self.search(far, next, q, skip, best);
-        }
-    }
-}
-
 /// The seed's cell first, then its 26 neighbours.
 const NEIGHBOURS: [[i64; 3]; 27] = {
     let mut a = [[0i64; 3]; 27];
@@ -761,16 +654,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn morton_interleaves_bits() {
-        assert_eq!(morton([1, 0, 0]), 1);
-        assert_eq!(morton([0, 1, 0]), 2);
-        assert_eq!(morton([0, 0, 1]), 4);
-        assert_eq!(morton([3, 0, 0]), 0b1001);
-        let m = (1u32 << GRID_BITS) - 1;
-        assert_eq!(morton([m, m, m]), (1u64 << 63) - 1);
-    }
-
-    #[test]
     fn neighbours_are_the_27_offsets() {
         let mut v: Vec<[i64; 3]> = NEIGHBOURS.to_vec();
         assert_eq!(v[0], [0, 0, 0]);
@@ -788,30 +671,6 @@ mod tests {
         let cube = Aabb::new(Vec3::ZERO, Vec3::splat(2.0));
         assert!((floored_volume(&cube, 0.5) - 8.0).abs() < 1e-12);
         assert!((floored_volume(&cube, 3.0) - 27.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn point_tree_nearest_matches_brute_force() {
-        let mut r = hirad_core::rng::SplitMix64::new(5);
-        let mut pts: Vec<Vec3> = (0..2000)
-            .map(|_| Vec3::new(r.next_f32(), r.next_f32(), r.next_f32() * 0.1))
-            .collect();
-        pts.push(pts[17]); // a duplicate
-        let tree = PointTree::new(pts.clone());
-        for (i, &q) in pts.iter().enumerate() {
-            let brute = pts
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .map(|(_, &p)| (p - q).abs().max_element())
-                .fold(f32::INFINITY, f32::min);
-            assert_eq!(tree.nearest(q, i as u32), brute, "point {i}");
-        }
-        assert_eq!(tree.nearest(pts[17], 17), 0.0);
-        assert_eq!(
-            PointTree::new(vec![Vec3::ONE]).nearest(Vec3::ONE, 0),
-            f32::INFINITY
-        );
     }
 
     #[test]
