@@ -1,25 +1,8 @@
-//! Strategy `obt(λ)`: the overlapping binary tree (`spec/clustering.md`, paper §2.3), and the
-//! binary cell subdivision shared with `kdt` (λ = 0) and `okdt` (tight boxes, chains collapsed).
-//!
-//! Construction, top-down from the scene's bounding cube: a cell holding more than
-//! `kdt_leaf_size` surfaces is split at the middle of its longest axis (ties: lowest axis index).
-//! A surface whose box lies entirely on one side of the split plane (`max ≤ p` goes left — this
-//! is also where a flat surface lying in the plane goes — `min ≥ p` goes right) descends into
-//! that half; a surface crossing the plane is pushed into the half containing its centroid
-//! (centroid `≤ p` means left) when `size(surface) ≤ λ·size(child)/2`, otherwise it is attached
-//! to the cell. Empty cells are not stored. Recursion stops at `max_depth` or when the cell is
-//! too small for f32 to place a plane strictly inside it.
-//!
-//! Boxes: a `kdt`/`obt` node's box is its cell grown to contain every surface below it (for
-//! `kdt` that is exactly the cell: every surface lies inside the cell it is attached to), so
-//! empty space inside a cell is part of the cluster. An `okdt` node's box is tight around its
-//! contents instead.
-//!
-//! Consequences of the push rule (checked by the property tests): a surface of size S attached
-//! to a cell that was split crosses its plane with S > λ·size(child)/2, so the halves of that
-//! cell are smaller than 2S/λ (the cell itself is < 2S/λ unless its longest edge is unique, then
-//! < 4S/λ); and a child box extends at most λ·size(child)/2 beyond the split plane, so two
-//! sibling boxes of (cell) size d overlap along the split axis by at most λ·d ≤ (8/3)·λ·d.
+//! Strategy `obt(λ)`: the overlapping binary tree (paper §2.3), and the binary cell
+//! subdivision shared with `kdt` (λ = 0) and `okdt` (tight boxes, chains collapsed): cells
+//! are halved top-down, and a surface crossing the split plane is pushed into a half when it
+//! is small against that half (`size ≤ λ·size(child)/2`), attached to the cell otherwise.
+//! [`build`] gives the construction, the boxes and the consequences of the push rule.
 
 use super::topdown::{self, Item, Out, PAR_MIN};
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
@@ -51,6 +34,26 @@ impl Binary {
 }
 
 /// Build the tree.
+///
+/// Construction, top-down from the scene's bounding cube: a cell holding more than
+/// `kdt_leaf_size` surfaces is split at the middle of its longest axis (ties: lowest axis index).
+/// A surface whose box lies entirely on one side of the split plane (`max ≤ p` goes left — this
+/// is also where a flat surface lying in the plane goes — `min ≥ p` goes right) descends into
+/// that half; a surface crossing the plane is pushed into the half containing its centroid
+/// (centroid `≤ p` means left) when `size(surface) ≤ λ·size(child)/2`, otherwise it is attached
+/// to the cell. Empty cells are not stored. Recursion stops at `max_depth` or when the cell is
+/// too small for f32 to place a plane strictly inside it.
+///
+/// Boxes: a `kdt`/`obt` node's box is its cell grown to contain every surface below it (for
+/// `kdt` that is exactly the cell: every surface lies inside the cell it is attached to), so
+/// empty space inside a cell is part of the cluster. An `okdt` node's box is tight around its
+/// contents instead.
+///
+/// Consequences of the push rule (checked by the property tests): a surface of size S attached
+/// to a cell that was split crosses its plane with S > λ·size(child)/2, so the halves of that
+/// cell are smaller than 2S/λ (the cell itself is < 2S/λ unless its longest edge is unique, then
+/// < 4S/λ); and a child box extends at most λ·size(child)/2 beyond the split plane, so two
+/// sibling boxes of (cell) size d overlap along the split axis by at most λ·d ≤ (8/3)·λ·d.
 pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     build_with_cells(prims, cfg).0
 }
@@ -100,8 +103,7 @@ fn plane(cell: &Aabb) -> Option<(usize, f32, Aabb, Aabb)> {
 }
 
 /// Partition `items` in place into stay | left | right; returns the tight box and the group
-/// sizes, or only the box (`None`) when the cell is a leaf. (An in-place partition measured
-/// faster than a branch-free stable scatter into a second buffer: memory traffic dominates.)
+/// sizes, or only the box (`None`) when the cell is a leaf.
 #[inline]
 fn split(
     p: &Binary,

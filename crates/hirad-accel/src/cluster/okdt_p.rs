@@ -1,6 +1,6 @@
 //! Strategy `okdt-p` (`spec/clustering.md`, paper §3.2): [`okdt`](super::okdt), then every
 //! cluster with more than `max_surfaces` surfaces attached directly is re-clustered locally
-//! with [`proxi`](super::proxi).
+//! with [`proxi`].
 //!
 //! Re-clustering a node `N` with surfaces `S` (`|S| > max_surfaces`): PROXI builds a subtree
 //! over `S` alone, with at most `min(max_children, max(max_surfaces, 2))` members per cluster.

@@ -1,35 +1,9 @@
-//! Approximate volumetric visibility through a cluster tree (Sillion 1995; `radiosity.md`,
-//! `--visibility volume`).
-//!
-//! The transmittance of a segment `p → q` is `τ = exp(−Σ κ_c ℓ_c)`, where the sum runs over the
-//! clusters used as volumes, `κ_c = ΣA_c / (4 V_c)` (ΣA_c = total area of every surface below
-//! `c`, attached to it or to a descendant; `V_c` = volume of its box) and `ℓ_c` is the length of
-//! the segment inside the box of `c`.
-//!
-//! Rules, in traversal order from the root (only clusters whose box the segment crosses are
-//! visited):
-//! - a cluster is used as a volume when its size (longest box edge) is below
-//!   `vol_ratio × |q − p|` and it is not *excluded*; its subtree is then not visited;
-//! - otherwise the traversal descends: the surfaces attached directly to that cluster are
-//!   tested exactly against the segment (watertight test, `t ∈ [1e-4, 1 − 1e-4]` as for the
-//!   ray-casting test); an exact hit makes `τ = 0`. With `vol_ratio = 0` the result is therefore
-//!   exact ray-cast visibility (0 or 1), and it changes continuously into the volumetric
-//!   estimate as `vol_ratio` grows;
-//! - end points are given as [`Endpoint`]s. For [`Endpoint::Cluster`]`(c)` the cluster `c` and
-//!   its whole subtree contribute nothing (a cluster does not shadow its own emission), and the
-//!   ancestors of `c` are never used as volumes (their volume contains `c`; they are descended
-//!   into, so their other contents still count). For [`Endpoint::Surface`]`(s)` the surface `s`
-//!   is never tested and the cluster holding `s` and its ancestors are never used as volumes.
-//!
-//! Zero volume: boxes that are flat (e.g. a cluster of coplanar wall polygons) get every edge
-//! padded to at least [`PAD_REL`] × their size, symmetrically, both for `V_c` and for `ℓ_c`.
-//! For a segment crossing such a slab `κ·ℓ` then tends to `ΣA / (4·A_box·|cos θ|)` whatever the
-//! padding, the model's value for a flat layer. Boxes of size 0 (a point) have `κ = 0`.
-//!
-//! Note on the model: `ΣA/4` is the mean projected area of one-sided surfaces weighted by
-//! `max(0, cos)`. The mean projected area of a randomly oriented polygon seen from both sides
-//! (what blocks a ray) is `A/2`, so for a random, well-distributed set of small polygons the
-//! ray-cast transmittance is close to `τ²`. The tests check that relation.
+//! Approximate volumetric visibility through a cluster tree (Sillion 1995; `--visibility
+//! volume`): the transmittance of a segment is `exp(−Σ κ_c ℓ_c)` over the clusters used as
+//! volumes, with `κ_c = ΣA_c / (4 V_c)` and `ℓ_c` the length of the segment inside the box of
+//! `c`; clusters too large for the segment are descended into and their own surfaces tested
+//! exactly (so `vol_ratio = 0` gives exact ray-cast visibility). [`VolumeCaster`] gives the
+//! rules in full: which clusters are used as volumes, the end points, flat boxes.
 
 use super::watertight::{intersect, RayPre};
 use super::{Segment, Stack};
@@ -69,6 +43,36 @@ pub struct VolumeQuery {
 }
 
 /// Volumetric transmittance through the clusters of a tree.
+///
+/// The transmittance of a segment `p → q` is `τ = exp(−Σ κ_c ℓ_c)`, where the sum runs over the
+/// clusters used as volumes, `κ_c = ΣA_c / (4 V_c)` (ΣA_c = total area of every surface below
+/// `c`, attached to it or to a descendant; `V_c` = volume of its box) and `ℓ_c` is the length of
+/// the segment inside the box of `c`.
+///
+/// Rules, in traversal order from the root (only clusters whose box the segment crosses are
+/// visited):
+/// - a cluster is used as a volume when its size (longest box edge) is below
+///   `vol_ratio × |q − p|` and it is not *excluded*; its subtree is then not visited;
+/// - otherwise the traversal descends: the surfaces attached directly to that cluster are
+///   tested exactly against the segment (watertight test, `t ∈ [1e-4, 1 − 1e-4]` as for the
+///   ray-casting test); an exact hit makes `τ = 0`. With `vol_ratio = 0` the result is therefore
+///   exact ray-cast visibility (0 or 1), and it changes continuously into the volumetric
+///   estimate as `vol_ratio` grows;
+/// - end points are given as [`Endpoint`]s. For [`Endpoint::Cluster`]`(c)` the cluster `c` and
+///   its whole subtree contribute nothing (a cluster does not shadow its own emission), and the
+///   ancestors of `c` are never used as volumes (their volume contains `c`; they are descended
+///   into, so their other contents still count). For [`Endpoint::Surface`]`(s)` the surface `s`
+///   is never tested and the cluster holding `s` and its ancestors are never used as volumes.
+///
+/// Zero volume: boxes that are flat (e.g. a cluster of coplanar wall polygons) get every edge
+/// padded to at least [`PAD_REL`] × their size, symmetrically, both for `V_c` and for `ℓ_c`.
+/// For a segment crossing such a slab `κ·ℓ` then tends to `ΣA / (4·A_box·|cos θ|)` whatever the
+/// padding, the model's value for a flat layer. Boxes of size 0 (a point) have `κ = 0`.
+///
+/// Note on the model: `ΣA/4` is the mean projected area of one-sided surfaces weighted by
+/// `max(0, cos)`. The mean projected area of a randomly oriented polygon seen from both sides
+/// (what blocks a ray) is `A/2`, so for a random, well-distributed set of small polygons the
+/// ray-cast transmittance is close to `τ²`. The tests check that relation.
 pub struct VolumeCaster<'a> {
     pub scene: &'a Scene,
     pub tree: &'a ClusterTree,

@@ -8,7 +8,7 @@ pub(in crate::ray) const LEAF: u32 = 1 << 31;
 pub(super) const LEAF_COUNT_SHIFT: u32 = 26;
 /// Largest triangle count of an in-place leaf.
 pub(super) const LEAF_MAX_TRIS: usize = (1 << (31 - LEAF_COUNT_SHIFT)) - 1;
-/// Flag of an in-place run that is a piece of a node's own triangles ([`CHUNK_MAX`]), not a
+/// Flag of an in-place run that is a piece of a node's own triangles ([`CHUNK_MAX`](super::run_tree::CHUNK_MAX)), not a
 /// leaf of the tree.
 pub(super) const CHUNK: u32 = 1 << 25;
 /// Largest first packet of an in-place leaf.
@@ -54,8 +54,8 @@ pub(in crate::ray) struct Group {
     /// Number of non-empty lanes in this group (the run's lane included).
     pub lanes: u8,
     /// Bit of the run's lane when occlusion queries test the run as soon as that lane is hit
-    /// ([`EAGER_HITS_PER_TEST`]) instead of pushing its reference; bits 4–7: lanes holding
-    /// pieces of such a run split into a [`RunTree`], which occlusion queries visit before the
+    /// ([`EAGER_HITS_PER_TEST`](super::run_tree::EAGER_HITS_PER_TEST)) instead of pushing its reference; bits 4–7: lanes holding
+    /// pieces of such a run split into a [`RunTree`](super::run_tree::RunTree), which occlusion queries visit before the
     /// other lanes hit ([`FIRST`] shifted by the lane).
     pub eager: u8,
     /// Bit of the lane holding the box of the node's own triangle run (0: none in this group);
@@ -116,6 +116,6 @@ impl Default for Group {
 /// Bit of [`Group::eager`] (shifted by the lane) of a piece visited first.
 pub(in crate::ray) const FIRST: u8 = 1 << 4;
 
-/// Bit of [`Group::run`] marking a group that holds pieces of a node's own run ([`RunTree`])
+/// Bit of [`Group::run`] marking a group that holds pieces of a node's own run ([`RunTree`](super::run_tree::RunTree))
 /// rather than a node of the tree.
 pub(in crate::ray) const SUB: u16 = 1 << 15;

@@ -32,7 +32,7 @@ pub(super) fn has_avx512() -> bool {
 }
 
 /// Candidate mask of the lanes `valid` of a wide packet (see
-/// [`candidates4`](super::watertight::candidates4)).
+/// [`candidates4`]).
 #[inline(always)]
 pub(super) fn wide_candidates(r: &RayPre, w: &Wide, valid: u32, avx512: bool) -> u32 {
     #[cfg(target_arch = "x86_64")]

@@ -43,7 +43,7 @@ impl Ray4 {
 
     /// Lanes of `g` that the ray only touches along a face: it lies in the plane of a face of
     /// the lane's box (direction component zero, origin on the face) and everything in the
-    /// lane that touches that plane lies in it (`faces`, from [`face_bits`]; a box flat in
+    /// lane that touches that plane lies in it (`faces`, from [`face_bits`](super::faces::face_bits); a box flat in
     /// the plane is one case). Triangles in the plane are coplanar with the ray: the
     /// watertight test computes all three sheared edge functions as exactly zero (the in-plane
     /// coordinate is one of the two sheared axes and its shear constant is zero) and reports

@@ -13,12 +13,9 @@ use hirad_scene::Scene;
 /// pushed and visited in distance order with the children. Walls and floors straddling a k-d
 /// plane are likely occluders and are best tested at once; hundreds of leaves straddling a
 /// plane through a tree crown are best left until nearer children have been searched. Set
-/// by measurement (`raybench`, 1 thread, kdt/obt/okdt on office, graz_office, soup,
-/// copper_beech, bathroom): 0 (every run at once) is best on the two offices and worst on
-/// copper_beech (kdt 0.27 of sah against 0.43), ∞ (none) the reverse (graz kdt 0.44 against
-/// 0.53); 0.003 is within 0.05 of the better of the two everywhere (copper_beech obt and okdt
-/// 0.51 and 0.54 against 0.56 and 0.59 with every run at once; elsewhere within 0.03).
-const EAGER_HITS_PER_TEST: f64 = 0.003;
+/// by `raybench` measurement (`docs/perf-log.md`): a compromise between 0 (every run at
+/// once, best on the offices) and ∞ (none, best on copper_beech).
+pub(super) const EAGER_HITS_PER_TEST: f64 = 0.003;
 
 /// With tight boxes, a node's own run longer than this is split into pieces of nearby
 /// triangles ([`RunTree`]); pieces of at most this many are tested like a leaf.
@@ -121,10 +118,8 @@ impl RunTree {
 }
 
 /// Cost of visiting a piece of a split run (a step of the traversal and its box test), in
-/// sixteen-wide packet tests ([`test_cost`]). Set by measurement (`raybench`, 1 thread,
-/// kdt/obt/okdt/tf-oct on office, soup, bathroom, graz_office, copper_beech; 0, 0.5, 1, 1.5,
-/// 2 and 3): at 3 fewer runs are split and graz_office kdt runs at 0.55 of sah against 0.63
-/// at 1 (0.53 unsplit); 0 to 1.5 are within the noise of each other.
+/// sixteen-wide packet tests ([`test_cost`]). Set by `raybench` measurement
+/// (`docs/perf-log.md`).
 const STEP_COST: f64 = 1.0;
 
 /// Cost of testing a run of `n` triangles, in sixteen-wide packet tests.
