@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! One cluster tree type, built by every clustering strategy of the paper (and `sah`), and ray
 //! casting through it: the tree is both the radiosity hierarchy and the ray accelerator.
 //!

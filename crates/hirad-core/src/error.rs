@@ -9,12 +9,20 @@ pub enum Error {
     /// (The OS error is part of the message and deliberately not a `#[source]`, so that
     /// `{:#}` chains do not print it twice.)
     #[error("{}: {err}", path.display())]
-    Io { path: PathBuf, err: std::io::Error },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the OS reported.
+        err: std::io::Error,
+    },
     /// Malformed or invalid input: names the file and, where there is one, the line.
     #[error("{}{}: {msg}", file.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
     Input {
+        /// The file.
         file: PathBuf,
+        /// Line number (1-based), where known.
         line: Option<usize>,
+        /// What is wrong.
         msg: String,
     },
     /// Invalid configuration or arguments (unknown scene name, bad parameter value, ...).

@@ -6,7 +6,9 @@ use serde::{Deserialize, Serialize};
 /// Axis-aligned bounding box. The empty box has `min = +inf`, `max = -inf`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Aabb {
+    /// Lowest corner.
     pub min: Vec3,
+    /// Highest corner.
     pub max: Vec3,
 }
 

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The foundation every hirad crate stands on: the error type, geometry helpers (boxes),
 //! atomic output files, seeded random numbers, the progress hook and the `choice!` macro for
 //! command-line choices.

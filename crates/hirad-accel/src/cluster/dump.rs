@@ -34,7 +34,9 @@ impl std::str::FromStr for Level {
 /// Wireframe file formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
+    /// Wavefront OBJ (`.obj`).
     Obj,
+    /// ASCII PLY (`.ply`).
     Ply,
 }
 

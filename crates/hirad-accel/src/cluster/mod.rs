@@ -126,8 +126,11 @@ impl Default for ClusterConfig {
 /// Per-surface data the builders work from (bounding box, centroid, size = longest box edge).
 #[derive(Clone, Debug)]
 pub struct Prims {
+    /// Bounding box per surface.
     pub bbox: Vec<Aabb>,
+    /// Centroid (mean of the three vertices) per surface.
     pub centroid: Vec<Vec3>,
+    /// Area per surface (scene units²).
     pub area: Vec<f32>,
     /// Object (group) id per surface, from the file.
     pub object: Vec<u32>,
@@ -184,15 +187,20 @@ impl Prims {
 /// A node of a tree under construction.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BuildNode {
+    /// The node's box.
     pub bbox: Aabb,
+    /// Ids of the child nodes in [`BuildTree::nodes`].
     pub children: Vec<u32>,
+    /// Surfaces attached directly to the node.
     pub surfaces: Vec<u32>,
 }
 
 /// A tree under construction: nodes in any order, `root` names the root.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BuildTree {
+    /// The nodes, addressed by their index.
     pub nodes: Vec<BuildNode>,
+    /// Id of the root node.
     pub root: u32,
     /// Remarks of the builder for the statistics (e.g. groups that could not be split).
     pub notes: Vec<String>,
@@ -209,12 +217,16 @@ impl BuildTree {
 /// A node of a [`ClusterTree`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ClusterNode {
+    /// The cluster's box, as the strategy built it (it contains the node's surfaces and its
+    /// children's boxes, up to a small f32 slack).
     pub bbox: Aabb,
     /// Id of the first child (children are contiguous); meaningless when `num_children == 0`.
     pub first_child: u32,
+    /// Number of children.
     pub num_children: u32,
     /// Offset of the first attached surface in [`ClusterTree::surfaces`].
     pub first_surface: u32,
+    /// Number of surfaces attached directly to the node.
     pub num_surfaces: u32,
     /// Parent id, [`NONE`] for the root.
     pub parent: u32,
@@ -239,7 +251,9 @@ impl ClusterNode {
 /// The cluster hierarchy shared by the solver and the ray caster.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClusterTree {
+    /// The strategy that built the tree.
     pub strategy: Strategy,
+    /// The parameters it was built with.
     pub config: ClusterConfig,
     /// Nodes, root first, children contiguous, breadth-first order.
     pub nodes: Vec<ClusterNode>,

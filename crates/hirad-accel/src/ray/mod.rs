@@ -44,9 +44,13 @@ pub struct Hit {
 /// A query segment `origin + t·dir`, `t ∈ [tmin, tmax]`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Segment {
+    /// Origin (`t = 0`).
     pub origin: Vec3,
+    /// Direction, not necessarily normalised (`t = 1` is at `origin + dir`).
     pub dir: Vec3,
+    /// Lowest ray parameter tested.
     pub tmin: f32,
+    /// Highest ray parameter tested.
     pub tmax: f32,
 }
 
@@ -212,7 +216,9 @@ struct Entry {
 /// compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
 /// no counting cost.
 pub struct RayCaster<'a> {
+    /// The scene whose triangles are tested.
     pub scene: &'a Scene,
+    /// The cluster tree traversed (built for `scene`).
     pub tree: &'a ClusterTree,
     layout: Layout,
 }

@@ -95,8 +95,11 @@ impl SurfaceSampler {
 /// A sampled pair of surface points and its segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SamplePair {
+    /// First point (the segment's origin).
     pub a: SurfacePoint,
+    /// Second point (the segment's end).
     pub b: SurfacePoint,
+    /// The segment from `a` to `b` (direction `b − a` computed in f64), `t ∈ [1e-4, 1 − 1e-4]`.
     pub segment: Segment,
 }
 

@@ -36,9 +36,13 @@ pub enum Endpoint {
 /// One query of [`VolumeCaster::transmittance_batch`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VolumeQuery {
+    /// Start of the segment.
     pub p: Vec3,
+    /// End of the segment.
     pub q: Vec3,
+    /// What lies at `p`.
     pub a: Endpoint,
+    /// What lies at `q`.
     pub b: Endpoint,
 }
 
@@ -74,7 +78,9 @@ pub struct VolumeQuery {
 /// (what blocks a ray) is `A/2`, so for a random, well-distributed set of small polygons the
 /// ray-cast transmittance is close to `τ²`. The tests check that relation.
 pub struct VolumeCaster<'a> {
+    /// The scene whose triangles are tested.
     pub scene: &'a Scene,
+    /// The cluster tree traversed (built for `scene`).
     pub tree: &'a ClusterTree,
     /// Extinction coefficient per node, `ΣA / (4 V)` with the padded box.
     kappa: Vec<f32>,

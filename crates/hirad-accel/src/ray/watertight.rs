@@ -28,10 +28,13 @@ pub struct RayPre {
     pub far: [usize; 3],
     /// Axis permutation of the watertight test: `kz` is the dominant axis of the direction.
     pub kx: usize,
+    /// Second axis of the permutation.
     pub ky: usize,
+    /// Dominant axis of the direction.
     pub kz: usize,
-    /// Shear constants.
+    /// Shear constant along `kx` (`d[kx] / d[kz]`).
     pub sx: f32,
+    /// Shear constant along `ky` (`d[ky] / d[kz]`).
     pub sy: f32,
 }
 
