@@ -1,43 +1,7 @@
 //! TOML scene description files: combine mesh files, add lights, sun, sky, cameras and material
 //! overrides. This is how a mesh without emitters (e.g. `franka_panda`, `copper_beech`) is lit.
 //!
-//! ```toml
-//! name = "lit_panda"        # optional, default: the TOML file's stem
-//! up = "z"                  # optional, "y" or "z"; default: the first mesh's up axis
-//! sky = [0.2, 0.25, 0.35]   # optional uniform sky radiance (RGB)
-//!
-//! [[mesh]]                  # one or more; paths are relative to this TOML file
-//! file = "../shared/scenes/franka_panda/franka_panda.obj"   # .obj, .gltf, .glb or .ply
-//! scale = 1.0               # a number or [sx, sy, sz]        (applied first)
-//! rotate = [0.0, 0.0, 90.0] # degrees about x, then y, then z  (applied second)
-//! translate = [0.0, 0.0, 0.0]                                  # (applied last)
-//!
-//! [[light]]                 # a quad emitter: corner, corner+edge1, corner+edge1+edge2, corner+edge2
-//! name = "ceiling"          # its object name; its material is "light_<name>"
-//! corner = [-0.5, -0.5, 2.0]
-//! edge1 = [0.0, 1.0, 0.0]
-//! edge2 = [1.0, 0.0, 0.0]   # it emits towards edge1 × edge2 (here -z, downwards)
-//! radiance = [5.0, 5.0, 5.0]  # emitted radiance L_e (W/(m²·sr)); exitance is π·L_e
-//! rho = [0.0, 0.0, 0.0]     # optional reflectance of the light, default 0
-//!
-//! [sun]                     # optional directional sun
-//! direction = [0.3, -0.4, 1.0]   # towards the sun (normalised on load)
-//! irradiance = [800.0, 780.0, 700.0]
-//!
-//! [[camera]]                # named viewpoints
-//! name = "front"
-//! eye = [2.0, -2.0, 1.0]
-//! target = [0.3, 0.0, 0.4]
-//! up = [0.0, 0.0, 1.0]      # optional, default: the scene's up axis
-//! fov = 40.0                # vertical, degrees (default 45)
-//! width = 640               # default 512
-//! height = 480              # default 512
-//!
-//! [materials.white]         # overrides of a material of the meshes, by name
-//! rho = [0.8, 0.8, 0.8]
-//! emission = [0.0, 0.0, 0.0]
-//! ```
-//!
+//! The format (keys, defaults, units) is documented for users in `docs/scene-format.md`.
 //! Materials of different mesh files with the same name are merged (the first definition wins).
 //! Negative-determinant transforms (mirroring) reverse the winding so faces keep facing out.
 //! Errors name the TOML file and line (syntax errors, unknown keys, missing mesh files, unknown

@@ -1,20 +1,17 @@
 //! SOUP: a finely tessellated industrial hall delivered as a polygon soup.
 //!
 //! The hall is a row of 6 m bays (24 m deep, 12 m high): I-beam columns and roof girders,
-//! purlins, a vertical tank on legs with a conical top, a machine (base, motor, fan housing,
-//! control cabinet), stacked crates, a mezzanine walkway of grating bars with railings, pipe runs
-//! with flanges running the length of the hall, and hanging light panels (each a housing and an
-//! emitting panel 1.2 × 0.6 m facing down, L_e = (60, 58, 52) W/(m²·sr): the floor irradiance
-//! is a few W/m² and pixel radiances are about 0.1–1, no exposure correction needed).
+//! purlins, a vertical tank on legs with a conical top, a machine, stacked crates, a mezzanine
+//! walkway of grating bars with railings, pipe runs with flanges, and hanging light panels
+//! (1.2 × 0.6 m facing down, L_e = (60, 58, 52) W/(m²·sr): floor irradiance of a few W/m²,
+//! pixel radiances about 0.1–1, no exposure correction needed).
 //!
-//! `soup:N` asks for about N triangles: the number of bays is `clamp(round(N / 25000), 1, 12)`,
-//! then one edge length h (all primitives are tessellated into cells of edge ≤ h, the hall shell
-//! into cells of ≤ 4h) is chosen so that the triangle count is as close to N as the minimal
-//! tessellation allows (exact count computed before building; one bay at its coarsest has
-//! 1,916 triangles, so smaller requests get that). Then the triangles and the
-//! vertices are shuffled in random order, and every triangle gets object id 0: no object
-//! structure is left, but the winding stays consistent (closed solids face outwards, the hall
-//! faces inwards). Random choices come from the seed. +Y up.
+//! `soup:N` asks for about N triangles: `clamp(round(N / 25000), 1, 12)` bays, then one edge
+//! length h (primitives tessellated into cells of edge ≤ h, the hall shell ≤ 4h) chosen so the
+//! triangle count, computed exactly before building, is as close to N as possible (one bay at
+//! its coarsest has 1,916 triangles). Triangles and vertices are then shuffled and all get
+//! object id 0; the winding stays consistent (closed solids face outwards, the hall inwards).
+//! Random choices come from the seed. +Y up.
 
 use super::mesh::{camera, MeshBuilder};
 use crate::{RawScene, UpAxis};
