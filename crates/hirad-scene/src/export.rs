@@ -1,23 +1,11 @@
 //! Writing scenes and per-vertex results (OBJ, glTF binary, PLY), atomically.
 //!
-//! Coloured meshes ([`ColoredMesh`], the solver's output; colours are radiosity B in W/m²):
-//! - `.glb`: one mesh with `POSITION`, `COLOR_0` = the display colour clamp(B / white, 0, 1)
-//!   (float RGB, linear, within glTF's 0..1 for colours: a viewer's sRGB output encoding turns
-//!   it into the tone-mapped sRGB image) and `_RADIOSITY` = linear B (float RGB, unclamped; an
-//!   application attribute, which [`read_colored_mesh`] returns), with an unlit material
-//!   (`KHR_materials_unlit`) so viewers show the vertex colours. `white` is the 99th percentile
-//!   of the per-vertex maximum channel ([`tonemap_white`]), recorded as `radiosity_white` in
-//!   the asset's `extras`.
-//! - `.ply`: binary little endian; per vertex `float x y z`, `uchar red green blue` = sRGB of the
-//!   tone-mapped colour (what viewers display) and `float radiosity_r radiosity_g radiosity_b`
-//!   = linear B (what [`read_colored_mesh`] returns); `list uchar uint vertex_indices`.
-//! - `.obj`: `v x y z r g b` with linear B, `f a b c`.
-//!
-//! Whole scenes ([`write_scene`]): `.obj` + `.mtl` next to it (`Kd` = ρ, `Ke` = L_e, one `o` per
-//! object, a `# +Z up` header comment when the scene is Z-up), or `.glb` (one node and mesh per
-//! object with its own vertices, one primitive per material, `baseColorFactor` = ρ,
-//! `emissiveFactor` × `KHR_materials_emissive_strength` = L_e; a Z-up scene is put under a root
-//! node rotating it to glTF's +Y up).
+//! Coloured meshes ([`ColoredMesh`], the solver's output; colours are radiosity B in W/m²) are
+//! written by [`write_colored_mesh`] with both the linear B (what [`read_colored_mesh`] returns)
+//! and a tone-mapped display colour (white point [`tonemap_white`]) where the format allows,
+//! so that viewers show the solution as the images do. Whole scenes are written by
+//! [`write_scene`] (OBJ + MTL, GLB, or a TOML description that keeps sun, sky and cameras).
+//! Each function documents its file layout.
 
 use super::Scene;
 use glam::Vec3;
@@ -31,8 +19,11 @@ use std::path::Path;
 /// solution (colours are radiosity B in W/m²; images show B/π).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ColoredMesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle.
     pub triangles: Vec<[u32; 3]>,
+    /// Linear RGB per vertex (radiosity B, W/m², for a solution).
     pub colors: Vec<Vec3>,
 }
 
@@ -99,7 +90,18 @@ pub fn srgb_u8(x: f32) -> u8 {
     (s * 255.0 + 0.5) as u8
 }
 
-/// Write a coloured mesh; the format follows the extension (`.glb`, `.ply`, `.obj`).
+/// Write a coloured mesh; the format follows the extension (`.glb`, `.ply`, `.obj`):
+/// - `.glb`: one mesh with `POSITION`, `COLOR_0` = the display colour clamp(B / white, 0, 1)
+///   (float RGB, linear, within glTF's 0..1 for colours: a viewer's sRGB output encoding turns
+///   it into the tone-mapped sRGB image) and `_RADIOSITY` = linear B (float RGB, unclamped; an
+///   application attribute, which [`read_colored_mesh`] returns), with an unlit material
+///   (`KHR_materials_unlit`) so viewers show the vertex colours. `white` is the 99th percentile
+///   of the per-vertex maximum channel ([`tonemap_white`]), recorded as `radiosity_white` in
+///   the asset's `extras`.
+/// - `.ply`: binary little endian; per vertex `float x y z`, `uchar red green blue` = sRGB of the
+///   tone-mapped colour (what viewers display) and `float radiosity_r radiosity_g radiosity_b`
+///   = linear B (what [`read_colored_mesh`] returns); `list uchar uint vertex_indices`.
+/// - `.obj`: `v x y z r g b` with linear B, `f a b c`.
 pub fn write_colored_mesh(path: &Path, mesh: &ColoredMesh) -> Result<()> {
     check_mesh(path, mesh)?;
     match ext_of(path).as_str() {
@@ -376,6 +378,12 @@ fn read_colored_gltf(path: &Path) -> Result<ColoredMesh> {
 /// Write a whole scene (geometry, objects, materials) as `.obj` (+ `.mtl`), `.glb`, or `.toml`
 /// (a scene description next to `<stem>.obj` + `<stem>.mtl`, keeping sun, sky, cameras and up
 /// axis, which OBJ and glTF files do not carry).
+///
+/// `.obj` + `.mtl` next to it: `Kd` = ρ, `Ke` = L_e, one `o` per object, a `# +Z up` header
+/// comment when the scene is Z-up. `.glb`: one node and mesh per object with its own vertices,
+/// one primitive per material, `baseColorFactor` = ρ, `emissiveFactor` ×
+/// `KHR_materials_emissive_strength` = L_e; a Z-up scene is put under a root node rotating it
+/// to glTF's +Y up.
 pub fn write_scene(path: &Path, scene: &Scene) -> Result<()> {
     match ext_of(path).as_str() {
         "obj" => write_scene_obj(path, scene),
@@ -485,7 +493,7 @@ pub fn write_scene_obj(path: &Path, scene: &Scene) -> Result<()> {
     })
 }
 
-/// Write `scene` as binary glTF (see the module docs for the layout).
+/// Write `scene` as binary glTF (layout: [`write_scene`]).
 pub fn write_scene_glb(path: &Path, scene: &Scene) -> Result<()> {
     let mut b = GlbBuilder::default();
     // Triangles grouped per object, then per material, in input order.

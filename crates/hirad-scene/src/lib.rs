@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The scene model: flat arrays of f32 vertices and `u32` triangle indices, one material and one
 //! object id per triangle, materials with diffuse reflectance ρ and emitted radiance L_e,
 //! optional sun and sky, camera viewpoints.
@@ -21,6 +22,7 @@ use std::path::{Path, PathBuf};
 /// A diffuse material.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Material {
+    /// Name, unique within a scene.
     pub name: String,
     /// Diffuse reflectance ρ, linear RGB in [0, 1).
     pub rho: Vec3,
@@ -48,8 +50,10 @@ impl Material {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum UpAxis {
+    /// +Y up (the default).
     #[default]
     Y,
+    /// +Z up.
     Z,
 }
 
@@ -75,13 +79,19 @@ pub struct Sun {
 /// A pinhole camera viewpoint.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
+    /// Name of the viewpoint.
     pub name: String,
+    /// Eye position (scene units).
     pub eye: Vec3,
+    /// Point looked at (scene units).
     pub target: Vec3,
+    /// Up direction of the image.
     pub up: Vec3,
     /// Vertical field of view in degrees.
     pub fov_deg: f32,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
 }
 
@@ -99,21 +109,29 @@ pub struct LoadReport {
 /// Unvalidated scene data, as a loader or generator produces it.
 #[derive(Clone, Debug, Default)]
 pub struct RawScene {
+    /// Scene name (file stem or built-in name).
     pub name: String,
     /// File the data came from (for error messages); `None` for generated scenes.
     pub source: Option<PathBuf>,
+    /// Vertex positions (scene units, usually metres).
     pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle, counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
     /// Material index per triangle.
     pub tri_material: Vec<u32>,
     /// Object (group) index per triangle.
     pub tri_object: Vec<u32>,
+    /// Object (group) names, indexed by object id.
     pub objects: Vec<String>,
+    /// Materials, indexed by material id.
     pub materials: Vec<Material>,
+    /// Optional directional sun.
     pub sun: Option<Sun>,
     /// Uniform sky radiance (RGB).
     pub sky: Option<Vec3>,
+    /// Named viewpoints; the first is the default.
     pub cameras: Vec<Camera>,
+    /// Up axis of the data.
     pub up: UpAxis,
     /// The file gives every non-emitting surface a back face (MGF `sides 2`): solves and
     /// images are two-sided without `--two-sided`.
@@ -150,25 +168,39 @@ impl Default for SceneOptions {
 /// A validated scene. All arrays indexed by triangle have `num_triangles()` entries.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// Scene name (file stem or built-in name).
     pub name: String,
+    /// File the scene came from; `None` for built-in scenes.
     pub source: Option<PathBuf>,
+    /// Vertex positions (scene units, usually metres).
     pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle (degenerate triangles dropped).
     pub triangles: Vec<[u32; 3]>,
+    /// Material index per triangle.
     pub tri_material: Vec<u32>,
+    /// Object index per triangle.
     pub tri_object: Vec<u32>,
+    /// Object names; `["default"]` when the loader named none.
     pub objects: Vec<String>,
+    /// Materials, reflectance clamped to `max_reflectance`.
     pub materials: Vec<Material>,
     /// Unit geometric normal per triangle (counter-clockwise winding faces the viewer).
     pub normals: Vec<Vec3>,
     /// Area per triangle.
     pub areas: Vec<f32>,
+    /// Bounding box of the triangles kept.
     pub bbox: Aabb,
+    /// Optional directional sun.
     pub sun: Option<Sun>,
+    /// Uniform sky radiance (RGB).
     pub sky: Option<Vec3>,
+    /// Named viewpoints; the first is the default.
     pub cameras: Vec<Camera>,
+    /// Up axis (the loader's, or `SceneOptions::up`).
     pub up: UpAxis,
     /// Every non-emitting surface has a back face ([`RawScene::two_sided`]).
     pub two_sided: bool,
+    /// What loading noticed and repaired.
     pub report: LoadReport,
 }
 
@@ -422,30 +454,45 @@ impl Scene {
 /// Summary statistics of a scene (what `hirad info` prints).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SceneSummary {
+    /// Scene name.
     pub name: String,
+    /// File the scene came from.
     pub source: Option<PathBuf>,
+    /// Triangles kept.
     pub triangles: usize,
+    /// Vertices.
     pub vertices: usize,
+    /// Objects.
     pub objects: usize,
+    /// Materials.
     pub materials: usize,
     /// Materials with non-zero emission.
     pub emitter_materials: usize,
     /// Triangles with an emitting material.
     pub emitter_triangles: usize,
+    /// Zero-area triangles dropped.
     pub degenerate_dropped: usize,
+    /// Materials whose reflectance was clamped.
     pub clamped_materials: Vec<String>,
     /// Total surface area (scene units²).
     pub total_area: f64,
+    /// Bounding box minimum corner.
     pub bbox_min: Vec3,
+    /// Bounding box maximum corner.
     pub bbox_max: Vec3,
+    /// Up axis.
     pub up: UpAxis,
     /// The file gives every surface a back face ([`Scene::two_sided`]).
     pub two_sided: bool,
     /// Emitted power Φ = Σ π·L_e·A per channel (surfaces only).
     pub emitted_power: [f64; 3],
+    /// Directional sun, if any.
     pub sun: Option<Sun>,
+    /// Uniform sky radiance (RGB), if any.
     pub sky: Option<Vec3>,
+    /// Camera names.
     pub cameras: Vec<String>,
+    /// Wall time of loading, seconds.
     pub load_seconds: f64,
 }
 

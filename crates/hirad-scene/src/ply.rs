@@ -16,7 +16,9 @@ use std::path::Path;
 /// Triangles and per-vertex data read from a PLY file.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PlyMesh {
+    /// Vertex positions.
     pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle (polygons fan-triangulated).
     pub triangles: Vec<[u32; 3]>,
     /// `red`/`green`/`blue` per vertex: uchar/255 or float as stored (display colours).
     pub colors: Option<Vec<Vec3>>,

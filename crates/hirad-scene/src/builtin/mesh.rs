@@ -15,11 +15,17 @@ use std::collections::HashMap;
 /// Accumulates the arrays of a [`RawScene`].
 #[derive(Debug, Default)]
 pub struct MeshBuilder {
+    /// Vertex positions (metres, +Y up until [`finish`](Self::finish)).
     pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle.
     pub triangles: Vec<[u32; 3]>,
+    /// Material id per triangle.
     pub tri_material: Vec<u32>,
+    /// Object id per triangle.
     pub tri_object: Vec<u32>,
+    /// Object names, indexed by object id.
     pub objects: Vec<String>,
+    /// Materials, indexed by material id.
     pub materials: Vec<Material>,
     material_ids: HashMap<String, u32>,
     /// Current material id used by the primitives.
