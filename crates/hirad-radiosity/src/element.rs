@@ -15,6 +15,9 @@ use glam::{DVec3, Vec3};
 use hirad_accel::cluster::{ClusterTree, NONE};
 use hirad_scene::Scene;
 
+use crate::cluster_model::cluster_orientation;
+pub use crate::cluster_model::{facing_weight, ClusterOrient};
+
 /// Kind of an element.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -52,21 +55,6 @@ pub struct Element {
     pub emission: Vec3,
 }
 
-/// Share `max(0, n·ŝ)` of a cluster's received irradiance that a surface (centroid, normal)
-/// gets from a source at `src_centroid` under the directional cluster model: `ŝ` points from
-/// the surface's centroid to the source's, and nothing reaches a surface from behind a surface
-/// source (`src_normal`: the source's normal, zero for a cluster source), which keeps the back
-/// faces of two-sided surfaces from receiving what their front faces get.
-#[inline(always)]
-pub fn facing_weight(centroid: Vec3, normal: Vec3, src_centroid: Vec3, src_normal: Vec3) -> f64 {
-    let to = src_centroid - centroid;
-    let c = normal.dot(to);
-    if src_normal.dot(to) > 0.0 || c <= 0.0 {
-        return 0.0;
-    }
-    (c / to.length()) as f64
-}
-
 impl Element {
     /// True for cluster elements.
     #[inline]
@@ -74,66 +62,10 @@ impl Element {
         self.kind == Kind::Cluster
     }
 
-    /// Share of a cluster's received irradiance that this surface gets from source `src`
-    /// under the directional cluster model ([`facing_weight`]).
-    #[inline]
-    pub fn facing_weight(&self, src: &Element) -> f64 {
-        facing_weight(
-            self.centroid,
-            self.normal,
-            src.centroid,
-            src.facing_normal(),
-        )
-    }
-
-    /// The normal for [`facing_weight`]: a surface's own, zero for a cluster.
-    #[inline]
-    pub fn facing_normal(&self) -> Vec3 {
-        match self.kind {
-            Kind::Surface => self.normal,
-            Kind::Cluster => Vec3::ZERO,
-        }
-    }
-
     /// True when the element has no children yet.
     #[inline]
     pub fn is_leaf(&self) -> bool {
         self.num_children == 0
-    }
-}
-
-/// Orientation summary of the surfaces inside a cluster, used to bound the error of the
-/// isotropic cluster model (a cluster's true projected area towards a direction `d` is
-/// `Σ A_k max(0, n_k·d)`, which the model replaces by `Σ A_k / 4`).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ClusterOrient {
-    /// Area-weighted normal sum `Σ A_k n_k` over the root surface elements inside.
-    pub area_normal: Vec3,
-    /// Cosine of the half-angle of the cone around `area_normal` that holds every normal
-    /// inside (−1 when there is no such cone narrower than the sphere).
-    pub cone_cos: f32,
-    /// Second moment of the normals `M = Σ A_k n_k n_kᵀ` (xx, yy, zz, xy, xz, yz).
-    pub moment: [f32; 6],
-}
-
-impl ClusterOrient {
-    /// Projected area towards the unit direction `d` of a cluster of total area `area`, from
-    /// the spherical-harmonic expansion of `Σ A_k max(0, n_k·d)` to order 2:
-    /// `A/4 + N·d/2 + (5/32)(3 dᵀMd − A)`, clamped at zero. Order 0 alone is the isotropic
-    /// model's `A/4`; the expansion is exact for the order-0 and order-1 parts (the total
-    /// power and its balance between opposite directions), and within `0.094 A` (at grazing
-    /// directions of a flat cluster) of the true projected area.
-    #[inline]
-    pub fn projected_area(&self, area: f64, d: DVec3) -> f64 {
-        let m = self.moment.map(|v| v as f64);
-        let dmd = m[0] * d.x * d.x
-            + m[1] * d.y * d.y
-            + m[2] * d.z * d.z
-            + 2.0 * (m[3] * d.x * d.y + m[4] * d.x * d.z + m[5] * d.y * d.z);
-        let p = 0.25 * area
-            + 0.5 * self.area_normal.as_dvec3().dot(d)
-            + (5.0 / 32.0) * (3.0 * dmd - area);
-        p.max(0.0)
     }
 }
 
@@ -412,78 +344,6 @@ impl Elements {
             self.leaves_of(c, out);
         }
     }
-}
-
-/// Orientation summaries of the clusters `0..nc`: area-weighted normal sums bottom-up, then
-/// the widest angle between each cluster's mean normal and the normal of any root surface
-/// inside (every root surface walks up its cluster ancestors).
-fn cluster_orientation(elems: &[Element], kids: &[u32], nc: u32) -> Vec<ClusterOrient> {
-    let mut sum = vec![DVec3::ZERO; nc as usize];
-    let mut mom = vec![[0f64; 6]; nc as usize];
-    for id in (0..nc as usize).rev() {
-        let e = &elems[id];
-        let mut acc = DVec3::ZERO;
-        let mut m = [0f64; 6];
-        for &k in &kids[e.first_child as usize..(e.first_child + e.num_children) as usize] {
-            if k < nc {
-                acc += sum[k as usize];
-                for (a, b) in m.iter_mut().zip(&mom[k as usize]) {
-                    *a += b;
-                }
-            } else {
-                let s = &elems[k as usize];
-                let a = s.area as f64;
-                let n = s.normal.as_dvec3();
-                acc += n * a;
-                let t = [
-                    n.x * n.x,
-                    n.y * n.y,
-                    n.z * n.z,
-                    n.x * n.y,
-                    n.x * n.z,
-                    n.y * n.z,
-                ];
-                for (mm, v) in m.iter_mut().zip(t) {
-                    *mm += a * v;
-                }
-            }
-        }
-        sum[id] = acc;
-        mom[id] = m;
-    }
-    let axis: Vec<DVec3> = (0..nc as usize)
-        .map(|id| {
-            let a = elems[id].area as f64;
-            let l = sum[id].length();
-            if a > 0.0 && l > 1e-6 * a {
-                sum[id] / l
-            } else {
-                DVec3::ZERO
-            }
-        })
-        .collect();
-    let mut cos_min = vec![1.0f64; nc as usize];
-    for s in &elems[nc as usize..] {
-        if s.kind != Kind::Surface || s.level != 0 {
-            continue;
-        }
-        let n = s.normal.as_dvec3();
-        let mut c = s.parent;
-        while c != NONE && c < nc {
-            let ax = axis[c as usize];
-            let v = if ax == DVec3::ZERO { -1.0 } else { n.dot(ax) };
-            cos_min[c as usize] = cos_min[c as usize].min(v);
-            c = elems[c as usize].parent;
-        }
-    }
-    (0..nc as usize)
-        .map(|id| ClusterOrient {
-            area_normal: sum[id].as_vec3(),
-            // Rounding margin, so that the cone holds its normals in f32.
-            cone_cos: (cos_min[id] - 1e-5).max(-1.0) as f32,
-            moment: mom[id].map(|v| v as f32),
-        })
-        .collect()
 }
 
 /// Iterator over the children of an element.

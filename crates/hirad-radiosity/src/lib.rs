@@ -13,6 +13,7 @@
 //!
 //! Entry point: [`solve`].
 
+pub mod cluster_model;
 pub mod config;
 pub mod element;
 pub mod formfactor;

@@ -5,7 +5,7 @@
 //! the radiosity of the leaf elements meeting at a vertex, each weighted by its open share
 //! (a leaf inside a solid or under a coplanar face does not darken its visible neighbours),
 //! then fits the vertex values so that every leaf keeps its radiosity as its mean, drawing a
-//! leaf around its centroid where the fit alone cannot ([`keep_leaf_means`]);
+//! leaf around its centroid where the fit alone cannot (`keep_leaf_means`);
 //! vertices are shared between leaves
 //! of the same face side, material and plane orientation (normals equal to 1e-3), so creases
 //! and material boundaries stay sharp. `flat` gives every leaf its own three vertices

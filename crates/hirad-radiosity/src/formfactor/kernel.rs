@@ -1,0 +1,590 @@
+//! The sampled link kernel ([`KernelCtx`]): the unoccluded estimate `F̃`, its spread over a
+//! surface receiver, and the full evaluation with stratified jittered shadow rays
+//! ([`KernelEval`]).
+//!
+//! Cluster receivers: isotropic clusters (and isotropic reception) take the kernel at the
+//! centre, facing the source (`spec/radiosity.md`); a directional cluster with oriented
+//! reception samples its surfaces in proportion to their hand-out weights (see
+//! [`KernelCtx::evaluate_with`]). Shadow rays of cluster ends start from points on their
+//! surfaces and leave out only those surfaces (directional) or the whole cluster (isotropic).
+//! Points of a triangle that a coplanar one covers ([`Covers`]) neither receive nor emit.
+
+use super::analytic::{point_to_disk, point_to_polygon};
+use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
+use super::sampling::{sample_triangle, sample_triangle_above, stratified_2d};
+use crate::cluster_model::{self, ClusterOrient};
+use crate::config::{ClusterEmission, Reception};
+use crate::element::{quad_path, Elements, Kind};
+use crate::link::Deposit;
+use crate::overlap::Covers;
+use crate::visibility::Visibility;
+use glam::Vec3;
+use hirad_accel::cluster::ClusterTree;
+use hirad_accel::ray::volume::Endpoint;
+use hirad_core::rng::SplitMix64;
+
+/// Samples and bounds of a link kernel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KernelEval {
+    /// The kernel with visibility (form factor receiver → source).
+    pub k: f64,
+    /// Unoccluded estimate `F̃` (the `bf` oracle's quantity, per unit source radiosity).
+    pub est: f64,
+    /// Lower and upper kernel bounds (with visibility bounds), for the `error` oracle.
+    pub kmin: f64,
+    pub kmax: f64,
+    /// Shadow rays cast.
+    pub rays: u64,
+    /// Some samples with a positive kernel see the source and some do not.
+    pub mixed: bool,
+    /// Directional cluster sources, and subdivided surface sources asked for their leaves: per
+    /// sample, the surface element its point lies on and its share of `k`, so that the
+    /// transfer takes each sampled surface's own radiosity (`Σ w_s B_s`) instead of the
+    /// source's average over parts the receiver does not see (the back faces of two-sided
+    /// walls, a lamp behind a wall of the same cluster, a ceiling's bright band right above a
+    /// lamp that hangs in front of it).
+    pub members: Vec<(u32, f32)>,
+    /// Surface receiver whose rays disagree: where the transfer lands ([`Deposit`]).
+    pub deposit: Deposit,
+    /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
+    pub draw: Deposit,
+}
+
+/// Where a mixed link's transfer lands on a surface receiver (vertices `vr`) and where a
+/// surface source (`vs`) sends it from: up to [`Deposit::POINTS`] of the sample pairs
+/// (receiver point, source point) whose rays were open, drawn evenly among them.
+pub(super) fn deposit_at(
+    vr: Option<&[Vec3; 3]>,
+    vs: Option<&[Vec3; 3]>,
+    seen: &mut [(Vec3, Vec3)],
+    rng: &mut SplitMix64,
+) -> (Deposit, Deposit) {
+    let c = seen.len().min(Deposit::POINTS);
+    for i in 0..c {
+        let j = i + (rng.next_u64() % (seen.len() - i) as u64) as usize;
+        seen.swap(i, j);
+    }
+    let paths = |v: Option<&[Vec3; 3]>, end: fn(&(Vec3, Vec3)) -> Vec3| -> Deposit {
+        v.map_or(Deposit::default(), |v| {
+            let p: Vec<u32> = seen[..c]
+                .iter()
+                .map(|s| quad_path(v, end(s), Deposit::LEVELS))
+                .collect();
+            Deposit::new(&p)
+        })
+    };
+    (paths(vr, |s| s.0), paths(vs, |s| s.1))
+}
+
+/// Everything needed to evaluate link kernels.
+#[derive(Clone, Copy)]
+pub struct KernelCtx<'a> {
+    pub elems: &'a Elements,
+    pub tree: &'a ClusterTree,
+    pub vis: &'a Visibility<'a>,
+    /// Coplanar overlaps: covered points neither receive nor emit.
+    pub covers: &'a Covers,
+    /// Shadow rays per link.
+    pub n_rays: usize,
+    /// Seed of the run.
+    pub seed: u64,
+    /// Emission model of cluster sources.
+    pub emission: ClusterEmission,
+    /// How clusters hand received irradiance to their surfaces.
+    pub reception: Reception,
+}
+
+/// Geometry of one end of a link.
+#[derive(Clone, Copy)]
+pub(crate) enum End {
+    Surface {
+        v: [Vec3; 3],
+        n: Vec3,
+        c: Vec3,
+        area: f64,
+        tri: u32,
+    },
+    Cluster {
+        lo: Vec3,
+        hi: Vec3,
+        c: Vec3,
+        area: f64,
+        node: u32,
+        /// Orientation summary for the directional emission model (`None`: isotropic).
+        orient: Option<ClusterOrient>,
+        /// Normal of the surface at the sample point `c` (sampled kernels).
+        sample_normal: Option<Vec3>,
+    },
+}
+
+impl End {
+    pub(super) fn endpoint(&self) -> Endpoint {
+        match *self {
+            End::Surface { tri, .. } => Endpoint::Surface(tri),
+            End::Cluster { node, .. } => Endpoint::Cluster(node),
+        }
+    }
+}
+
+/// Signed distances of the box corners to a plane: true when the whole box is behind or on it.
+fn box_behind(lo: Vec3, hi: Vec3, p: Vec3, n: Vec3, tol: f32) -> bool {
+    // The corner farthest along n.
+    let far = Vec3::new(
+        if n.x >= 0.0 { hi.x } else { lo.x },
+        if n.y >= 0.0 { hi.y } else { lo.y },
+        if n.z >= 0.0 { hi.z } else { lo.z },
+    );
+    n.dot(far - p) <= tol
+}
+
+fn tri_behind(v: &[Vec3; 3], p: Vec3, n: Vec3, tol: f32) -> bool {
+    v.iter().all(|&q| n.dot(q - p) <= tol)
+}
+
+impl KernelCtx<'_> {
+    pub(crate) fn end(&self, id: u32) -> End {
+        let e = &self.elems.elems[id as usize];
+        match e.kind {
+            Kind::Surface => End::Surface {
+                v: e.verts,
+                n: e.normal,
+                c: e.centroid,
+                area: e.area as f64,
+                tri: e.tri,
+            },
+            Kind::Cluster => {
+                let b = self.tree.nodes[e.tri as usize].bbox;
+                End::Cluster {
+                    lo: b.min,
+                    hi: b.max,
+                    c: e.centroid,
+                    area: e.area as f64,
+                    node: e.tri,
+                    orient: (self.emission == ClusterEmission::Directional)
+                        .then(|| self.elems.orient[id as usize]),
+                    sample_normal: None,
+                }
+            }
+        }
+    }
+
+    /// True when the kernel between receiver `i` and source `j` is identically zero by
+    /// geometry (one behind the other's plane, coplanar surfaces).
+    pub fn is_zero(&self, i: u32, j: u32) -> bool {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let tol = |a: Vec3, b: Vec3| 1e-6 * (a.abs().max_element() + b.abs().max_element() + 1e-3);
+        match (ri, sj) {
+            (End::Surface { v: vi, n: ni, .. }, End::Surface { v: vj, n: nj, .. }) => {
+                tri_behind(&vj, vi[0], ni, tol(vi[0], vj[0]))
+                    || tri_behind(&vi, vj[0], nj, tol(vi[0], vj[0]))
+            }
+            (End::Surface { v, n, .. }, End::Cluster { lo, hi, .. }) => {
+                box_behind(lo, hi, v[0], n, tol(v[0], hi))
+            }
+            (End::Cluster { lo, hi, .. }, End::Surface { v, n, .. }) => {
+                box_behind(lo, hi, v[0], n, tol(v[0], hi))
+            }
+            (End::Cluster { .. }, End::Cluster { .. }) => false,
+        }
+    }
+
+    /// Unoccluded kernel at receiver point `x` (normal `n`, `None` for a cluster receiver,
+    /// which faces the source).
+    pub(crate) fn point_kernel(x: Vec3, n: Option<Vec3>, src: &End) -> f64 {
+        let xd = x.as_dvec3();
+        match *src {
+            End::Surface {
+                v, n: nj, c, area, ..
+            } => {
+                let nn = match n {
+                    Some(n) => n.as_dvec3(),
+                    None => {
+                        let d = c.as_dvec3() - xd;
+                        let l = d.length();
+                        if l <= 0.0 {
+                            return 0.0;
+                        }
+                        d / l
+                    }
+                };
+                let poly = v.map(|p| p.as_dvec3());
+                let f = point_to_polygon(xd, nn, &poly, nj.as_dvec3());
+                // A receiver facing the source cannot see more than a disk of the same area
+                // would give at this distance: guards the cluster-centre case.
+                if n.is_none() {
+                    let r2 = (c.as_dvec3() - xd).length_squared();
+                    let cs = nj.as_dvec3().dot((xd - c.as_dvec3()).normalize_or_zero());
+                    f.max(point_to_disk(r2, 1.0, cs, area)).min(1.0)
+                } else {
+                    f
+                }
+            }
+            End::Cluster {
+                c,
+                area,
+                orient,
+                sample_normal,
+                ..
+            } => cluster_model::point_kernel(xd, n, c, area, orient, sample_normal),
+        }
+    }
+
+    /// Cheap unoccluded estimate `F̃` (no rays): the maximum of the point kernel at the
+    /// receiver's centroid and (slightly inset) corners.
+    pub fn estimate(&self, i: u32, j: u32) -> f64 {
+        match self.end(i) {
+            End::Surface { .. } => self.spread(i, j).1,
+            End::Cluster { c, .. } => Self::point_kernel(c, None, &self.end(j)),
+        }
+    }
+
+    /// Range `(min, max)` of the unoccluded kernel over a surface receiver `i` (its centroid,
+    /// slightly inset corners and the point nearest the source), no rays; `(0, 0)` for a
+    /// cluster receiver.
+    pub fn spread(&self, i: u32, j: u32) -> (f64, f64) {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let End::Surface { v, n, c, .. } = ri else {
+            return (0.0, 0.0);
+        };
+        // The receiver's point nearest the source: a large receiver beside a small, bright
+        // source (a ceiling over a lamp 8 cm below it) sees it strongly there and weakly at its
+        // centre and corners.
+        let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
+        let mut lo = Self::point_kernel(c, Some(n), &sj);
+        let mut hi = lo;
+        for p in v.into_iter().chain([near]) {
+            let f = Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj);
+            lo = lo.min(f);
+            hi = hi.max(f);
+        }
+        (lo, hi)
+    }
+
+    /// Full kernel evaluation of the link (receiver `i`, source `j`) with `n_rays` stratified
+    /// jittered shadow rays. `bounds`: also sample the kernel bounds for the `error` oracle.
+    pub fn evaluate(&self, i: u32, j: u32, bounds: bool) -> KernelEval {
+        self.evaluate_with(i, j, bounds, None, false, false)
+    }
+
+    /// [`evaluate`](Self::evaluate) reusing an estimate `F̃` already computed for the link;
+    /// `fine`: the link stays unresolved (the oracle would refine it, neither end can be
+    /// split), so a near-field kernel integrates at twice the density; `leaves`: a subdivided
+    /// surface source keeps, per sample, the leaf its point lies on
+    /// ([`KernelEval::members`]), so that the gather takes the radiosity where the samples
+    /// see the source instead of its mean.
+    pub fn evaluate_with(
+        &self,
+        i: u32,
+        j: u32,
+        bounds: bool,
+        est: Option<f64>,
+        fine: bool,
+        leaves: bool,
+    ) -> KernelEval {
+        let (ri, sj) = (self.end(i), self.end(j));
+        let n = self.n_rays.max(1);
+        let mut rng =
+            SplitMix64::for_item(self.seed ^ 0x005E_ED0F_114C, ((i as u64) << 32) | j as u64);
+        let mut su = Vec::with_capacity(n);
+        let mut sv = Vec::with_capacity(n);
+        stratified_2d(n, &mut rng, &mut su);
+        stratified_2d(n, &mut rng, &mut sv);
+        let est = est.unwrap_or_else(|| self.estimate(i, j));
+        if let (End::Surface { .. }, End::Surface { .. }) = (ri, sj) {
+            let m = near_field_points(&ri, &sj, n, fine);
+            if m > n {
+                return self.near_field(&ri, &sj, m, n, est, &mut rng);
+            }
+        }
+        let mut sum = 0.0;
+        let mut rays = 0u64;
+        let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
+        let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
+        // Some samples that count see the source and some do not.
+        let (mut open, mut blocked) = (false, false);
+        let source_leaves = leaves && matches!(sj, End::Surface { .. });
+        let per_member = source_leaves
+            || matches!(
+                sj,
+                End::Cluster {
+                    orient: Some(_),
+                    ..
+                }
+            );
+        let mut members = Vec::new();
+        // Directional cluster receiver with oriented reception: its surfaces k with their
+        // hand-out weights w_k (`facing_weight`) as a cumulative distribution of A_k·w_k; a
+        // surface drawn from it contributes E(x)/w_k, whose mean is Σ A_k E_k / Σ A_k w_k, the
+        // irradiance that the hand-out `H·w_k` must carry to deliver the received power.
+        let recv_cdf = match ri {
+            End::Cluster { node, .. }
+                if self.emission == ClusterEmission::Directional
+                    && self.reception == Reception::Oriented =>
+            {
+                Some(self.hand_out_cdf(node, j))
+            }
+            _ => None,
+        };
+        // The centre kernel of a cluster receiver without a hand-out distribution, computed
+        // once when the source is the same for every sample (all but directional clusters).
+        let centre_k = match (ri, &recv_cdf, sj) {
+            (
+                End::Cluster { .. },
+                _,
+                End::Cluster {
+                    orient: Some(_), ..
+                },
+            ) => None,
+            (End::Cluster { c, .. }, None, _) => Some(Self::point_kernel(c, None, &sj)),
+            _ => None,
+        };
+        if recv_cdf.as_ref().is_some_and(|c| c.is_empty()) {
+            // No surface of the receiver faces the source: the hand-out delivers nothing.
+            return KernelEval {
+                est,
+                ..Default::default()
+            };
+        }
+        let mut n_open = 0usize;
+        // (receiver point, source point) of the samples whose rays were open.
+        let mut seen = Vec::new();
+        for s in 0..n {
+            // Source sample point. A directional cluster source is the projected area of the
+            // sampled surface (its own normal) at that point, so that the kernel converges to
+            // the form factor of the cluster's contents; an isotropic one stays at its centre.
+            let mut member = NO_MEMBER;
+            let (y, ny) = match sj {
+                End::Surface { v, n, .. } => (sample_triangle(&v, sv[s][0], sv[s][1]), n),
+                End::Cluster { node, .. } => {
+                    let (y, n, k) = self.sample_cluster(node, sv[s][0], sv[s][1]);
+                    member = k;
+                    (y, n)
+                }
+            };
+            let mut src = sj;
+            if let End::Cluster {
+                c,
+                sample_normal,
+                orient: Some(_),
+                ..
+            } = &mut src
+            {
+                *c = y;
+                *sample_normal = Some(ny);
+            }
+            // Receiver sample point and its unoccluded kernel: on a surface receiver; on a
+            // surface of a directional cluster drawn by hand-out weight (irradiance there over
+            // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
+            // centre, facing the source.
+            // What the shadow ray leaves out at each end: the surface its point lies on when
+            // a directional cluster is sampled surface by surface (its other surfaces occlude
+            // like any other), a whole cluster when the isotropic model stands for it (whose
+            // point emitter or receiver has no inside, as in Sillion's model).
+            let mut ex = ri.endpoint();
+            let ey = match sj {
+                End::Cluster {
+                    orient: Some(_), ..
+                } if member != NO_MEMBER => {
+                    Endpoint::Surface(self.elems.elems[member as usize].tri)
+                }
+                _ => sj.endpoint(),
+            };
+            let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
+                (End::Surface { v, n: nr, .. }, _) => {
+                    let x = sample_triangle(&v, su[s][0], su[s][1]);
+                    (x, self.sample_kernel(x, nr, &src, member), Some(nr))
+                }
+                (End::Cluster { .. }, Some(cdf)) => {
+                    let total = cdf[cdf.len() - 1].1;
+                    let target = su[s][0] as f64 * total;
+                    let i = cdf
+                        .partition_point(|&(_, c, _)| c <= target)
+                        .min(cdf.len() - 1);
+                    let lo = if i > 0 { cdf[i - 1].1 } else { 0.0 };
+                    let (id, hi, w) = cdf[i];
+                    let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
+                    let e = &self.elems.elems[id as usize];
+                    let x = sample_triangle(&e.verts, u as f32, su[s][1]);
+                    let fx = self.sample_kernel(x, e.normal, &src, member) / w;
+                    ex = Endpoint::Surface(e.tri);
+                    (x, fx, Some(e.normal))
+                }
+                (End::Cluster { node, c, .. }, None) => {
+                    let (x, _, _) = self.sample_cluster(node, su[s][0], su[s][1]);
+                    if bounds {
+                        // The kernel's spread over the receiving cluster.
+                        let fb = Self::point_kernel(x, None, &src);
+                        fmin = fmin.min(fb);
+                        fmax = fmax.max(fb);
+                    }
+                    let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
+                    (x, k, None)
+                }
+            };
+            // A surface source's kernel at x counts the part of it above x's plane: aim the
+            // shadow ray there (a ray to a point behind x could pass where the counted part is
+            // hidden, e.g. from inside a thin slab to a desk the slab stands on).
+            let y = match (sj, nx) {
+                (End::Surface { v, .. }, Some(nr)) => {
+                    sample_triangle_above(x, nr, &v, sv[s][0], sv[s][1]).unwrap_or(y)
+                }
+                (
+                    End::Cluster {
+                        orient: Some(_), ..
+                    },
+                    Some(nr),
+                ) if member != NO_MEMBER => {
+                    let v = self.elems.elems[member as usize].verts;
+                    sample_triangle_above(x, nr, &v, sv[s][1], sv[s][0]).unwrap_or(y)
+                }
+                _ => y,
+            };
+            if source_leaves {
+                member = self.elems.leaf_at(j, y);
+            }
+            // A covered receiver point is not part of the receiver: the kernel is the mean
+            // over its open points. A covered source point emits nothing.
+            if self.covered(ex, nx.unwrap_or(Vec3::ZERO), x) {
+                if per_member {
+                    members.push((NO_MEMBER, 0.0));
+                }
+                continue;
+            }
+            n_open += 1;
+            let vis = if fx > 0.0 || bounds {
+                rays += 1;
+                if self.covered(ey, ny, y) {
+                    0.0
+                } else {
+                    self.segment(x, ex, y, ey)
+                }
+            } else {
+                0.0
+            };
+            if fx > 0.0 {
+                open |= vis > 0.0;
+                blocked |= vis < 1.0;
+                if vis > 0.0 {
+                    seen.push((x, y));
+                }
+            }
+            vmin = vmin.min(vis);
+            vmax = vmax.max(vis);
+            fmin = fmin.min(fx);
+            fmax = fmax.max(fx);
+            sum += fx * vis;
+            if per_member {
+                members.push((member, (fx * vis) as f32));
+            }
+        }
+        if bounds {
+            // Corner points of a surface receiver widen the kernel range (no rays).
+            if let End::Surface { v, n: nr, c, .. } = ri {
+                for p in v {
+                    let f = Self::point_kernel(p + (c - p) * 0.02, Some(nr), &sj);
+                    fmin = fmin.min(f);
+                    fmax = fmax.max(f);
+                }
+            }
+        }
+        let n_open = n_open.max(1) as f64;
+        for m in &mut members {
+            m.1 = (m.1 as f64 / n_open) as f32;
+        }
+        let mut k = sum / n_open;
+        if recv_cdf.is_some() && k > 1.0 {
+            // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
+            for m in &mut members {
+                m.1 /= k as f32;
+            }
+            k = 1.0;
+        }
+        if !fmin.is_finite() {
+            fmin = 0.0;
+        }
+        let (deposit, draw) = if open && blocked {
+            let vr = match ri {
+                End::Surface { v, .. } => Some(v),
+                _ => None,
+            };
+            // A source read through its leaves takes each sample's own radiosity already.
+            let vs = match sj {
+                End::Surface { v, .. } if !source_leaves => Some(v),
+                _ => None,
+            };
+            deposit_at(vr.as_ref(), vs.as_ref(), &mut seen, &mut rng)
+        } else {
+            Default::default()
+        };
+        KernelEval {
+            k,
+            est,
+            kmin: fmin * vmin,
+            kmax: fmax.max(est) * vmax,
+            rays,
+            mixed: open && blocked,
+            members,
+            deposit,
+            draw,
+        }
+    }
+
+    /// Area-uniform point on the surfaces inside cluster `node` from two numbers in [0, 1):
+    /// `u` picks a surface by descending the hierarchy with area-weighted choices (rescaled at
+    /// each level, so stratification of `u` carries over), `(u, v)` then place the point on it.
+    fn sample_cluster(&self, node: u32, u: f32, v: f32) -> (Vec3, Vec3, u32) {
+        let el = self.elems;
+        let mut id = node;
+        let mut u = u as f64;
+        loop {
+            let e = &el.elems[id as usize];
+            if e.kind == Kind::Surface || e.num_children == 0 {
+                return if e.kind == Kind::Surface {
+                    (sample_triangle(&e.verts, u as f32, v), e.normal, id)
+                } else {
+                    (e.centroid, Vec3::ZERO, NO_MEMBER)
+                };
+            }
+            let target = u * e.area as f64;
+            let mut acc = 0.0f64;
+            let mut pick = (id, 0.0f64, 0.0f64);
+            for c in el.children(id) {
+                let a = el.elems[c as usize].area as f64;
+                if a <= 0.0 {
+                    continue;
+                }
+                pick = (c, acc, a);
+                if acc + a > target {
+                    break;
+                }
+                acc += a;
+            }
+            if pick.0 == id {
+                return (e.centroid, Vec3::ZERO, NO_MEMBER);
+            }
+            u = ((target - pick.1) / pick.2).clamp(0.0, 0.999_999_9);
+            id = pick.0;
+        }
+    }
+
+    /// Point `p` of a surface end (its side facing `n`) is covered ([`Covers`]).
+    #[inline]
+    pub(super) fn covered(&self, end: Endpoint, n: Vec3, p: Vec3) -> bool {
+        match end {
+            Endpoint::Surface(tri) => self.covers.covered(tri, n, p),
+            _ => false,
+        }
+    }
+
+    /// Visibility of the segment x → y: every surface but the ends `a` and `b` can occlude.
+    pub(super) fn segment(&self, x: Vec3, a: Endpoint, y: Vec3, b: Endpoint) -> f64 {
+        self.vis.transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, a, b)
+    }
+}
+
+/// [`KernelCtx::sample_cluster`] found no surface.
+pub(crate) const NO_MEMBER: u32 = crate::link::NO_MEMBER;
+
+/// Shadow segments start and end this fraction of their length from their end points: the
+/// ends' own surfaces are left out by id, so this only absorbs rounding of the sample points.
+const SEG_EPS: f32 = 1e-6;

@@ -1,0 +1,80 @@
+//! Sampling helpers: area-uniform points of triangles (whole, or the part above a plane),
+//! stratified and jittered-grid 2-D samples.
+
+use super::analytic::clip_to_hemisphere;
+use glam::{DVec3, Vec3};
+use hirad_core::rng::SplitMix64;
+
+/// Area-uniform point, from two uniform numbers in [0, 1), of the part of triangle `v` that
+/// lies above the plane through `x` with normal `n`; `None` when no part of it does. A shadow
+/// ray from `x` is aimed at the part of the source that its kernel counts.
+pub fn sample_triangle_above(x: Vec3, n: Vec3, v: &[Vec3; 3], u1: f32, u2: f32) -> Option<Vec3> {
+    let xd = x.as_dvec3();
+    let nd = n.as_dvec3();
+    if v.iter().all(|p| nd.dot(p.as_dvec3() - xd) >= 0.0) {
+        return Some(sample_triangle(v, u1, u2));
+    }
+    let mut c = [DVec3::ZERO; 16];
+    let m = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()), &mut c);
+    if m < 3 {
+        return None;
+    }
+    // Pick a triangle of the fan (c0, ci, ci+1) by area, then a point on it.
+    let areas: Vec<f64> = (1..m - 1)
+        .map(|i| (c[i] - c[0]).cross(c[i + 1] - c[0]).length())
+        .collect();
+    let total: f64 = areas.iter().sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let mut target = u1 as f64 * total;
+    let mut i = 0;
+    while i + 1 < areas.len() && target >= areas[i] {
+        target -= areas[i];
+        i += 1;
+    }
+    let u = (target / areas[i].max(1e-300)).clamp(0.0, 0.999_999_9) as f32;
+    let t = [c[0], c[i + 1], c[i + 2]].map(|p| p.as_vec3());
+    Some(sample_triangle(&t, u, u2))
+}
+
+/// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).
+#[inline]
+pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
+    let s = u1.sqrt();
+    let b0 = 1.0 - s;
+    let b1 = s * (1.0 - u2);
+    let b2 = s * u2;
+    v[0] * b0 + v[1] * b1 + v[2] * b2
+}
+
+/// `n` stratified (Latin hypercube) jittered 2-D samples in [0, 1)².
+pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
+    out.clear();
+    let mut perm: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        perm.swap(i, j);
+    }
+    let inv = 1.0 / n as f32;
+    for (k, &p) in perm.iter().enumerate() {
+        let u = ((k as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        let v = ((p as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        out.push([u, v]);
+    }
+}
+
+/// `k × k` jittered 2-D samples in [0, 1)², one per cell of a regular grid: stratified in
+/// both dimensions together, unlike [`stratified_2d`], whose error on a function peaked in a
+/// small region (a receiver close above a source) is that of plain Monte Carlo.
+pub fn jittered_grid(k: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
+    out.clear();
+    let inv = 1.0 / k as f32;
+    for i in 0..k {
+        for j in 0..k {
+            let u = ((i as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+            let v = ((j as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+            out.push([u, v]);
+        }
+    }
+}

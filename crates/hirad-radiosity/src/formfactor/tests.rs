@@ -1,0 +1,140 @@
+use super::analytic::{angle_from, parallel_disk_exact, point_to_disk, point_to_polygon};
+use super::near_field::closest_on_triangle;
+use super::sampling::stratified_2d;
+use glam::{DVec3, Vec3};
+use hirad_core::rng::SplitMix64;
+use std::f64::consts::PI;
+
+fn square(z: f64, up: bool) -> Vec<DVec3> {
+    let mut p = vec![
+        DVec3::new(0.0, 0.0, z),
+        DVec3::new(1.0, 0.0, z),
+        DVec3::new(1.0, 1.0, z),
+        DVec3::new(0.0, 1.0, z),
+    ];
+    if !up {
+        p.reverse();
+    }
+    p
+}
+
+#[test]
+fn disk_estimate_matches_coaxial_closed_form() {
+    for (h, r) in [(1.0, 0.5), (0.3, 1.0), (5.0, 0.1)] {
+        let exact = parallel_disk_exact(h, 0.0, r);
+        let est = point_to_disk(h * h, 1.0, 1.0, PI * r * r);
+        assert!((exact - est).abs() < 1e-12, "{exact} {est}");
+    }
+    // Off axis, far away the estimate with the true cosines converges to the closed form.
+    let (h, a, r) = (10.0, 3.0, 0.2);
+    let exact = parallel_disk_exact(h, a, r);
+    let d2 = h * h + a * a;
+    let c = h / d2.sqrt();
+    let est = point_to_disk(d2, c, c, PI * r * r);
+    assert!(((exact - est) / exact).abs() < 1e-3, "{exact} {est}");
+}
+
+#[test]
+fn polygon_form_factor_analytic_values() {
+    // Point under the corner of a unit square at height 1: F = 0.13853 (tables).
+    let sq = square(1.0, false);
+    let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &sq, -DVec3::Z);
+    let a = 1.0 / 2f64.sqrt();
+    let exact = (1.0 / (2.0 * PI)) * 2.0 * (a * (1.0f64 / 2f64.sqrt()).atan());
+    assert!((f - exact).abs() < 1e-9, "{f} {exact}");
+    assert!((f - 0.138_53).abs() < 1e-4);
+    // Behind the emitting side: zero; a huge polygon fills the hemisphere: 1.
+    assert_eq!(
+        point_to_polygon(DVec3::ZERO, DVec3::Z, &square(1.0, true), DVec3::Z),
+        0.0
+    );
+    let big = [
+        DVec3::new(-1e4, -1e4, 1.0),
+        DVec3::new(-1e4, 1e4, 1.0),
+        DVec3::new(1e4, 1e4, 1.0),
+        DVec3::new(1e4, -1e4, 1.0),
+    ];
+    let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &big, -DVec3::Z);
+    assert!((f - 1.0).abs() < 1e-3, "{f}");
+    // A tilted receiver sees part of the polygon clipped by its horizon.
+    let f = point_to_polygon(DVec3::ZERO, DVec3::X, &big, -DVec3::Z);
+    assert!((f - 0.5).abs() < 1e-3, "{f}");
+}
+
+#[test]
+fn angle_from_matches_atan2() {
+    let mut rng = SplitMix64::new(7);
+    let mut worst = 0.0f64;
+    for i in 0..200_000 {
+        // Magnitudes over many decades, both signs of x, and the exact axes.
+        let s = 10f64.powf(rng.next_f64() * 12.0 - 6.0);
+        let y = rng.next_f64() * s;
+        let x = (rng.next_f64() * 2.0 - 1.0) * 10f64.powf(rng.next_f64() * 12.0 - 6.0);
+        let (y, x) = match i % 1000 {
+            0 => (0.0, x),
+            1 => (y, 0.0),
+            2 => (y, y),
+            3 => (y, -y),
+            _ => (y, x),
+        };
+        let want = y.atan2(x);
+        let got = angle_from(y, x);
+        let err = (got - want).abs() / want.abs().max(f64::MIN_POSITIVE);
+        worst = worst.max(if want == 0.0 { got.abs() } else { err });
+    }
+    assert!(worst < 1e-15, "worst relative error {worst:e}");
+}
+
+#[test]
+fn closest_on_triangle_matches_a_dense_search() {
+    let v = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(0.5, 1.5, 0.0),
+    ];
+    let mut rng = SplitMix64::new(5);
+    let grid: Vec<Vec3> = (0..=200)
+        .flat_map(|i| (0..=200 - i).map(move |j| (i, j)))
+        .map(|(i, j)| {
+            let (a, b) = (i as f32 / 200.0, j as f32 / 200.0);
+            v[0] * (1.0 - a - b) + v[1] * a + v[2] * b
+        })
+        .collect();
+    for _ in 0..200 {
+        // Points in every Voronoi region: around, beside and above the triangle.
+        let p = Vec3::new(
+            rng.next_f32() * 5.0 - 1.5,
+            rng.next_f32() * 4.0 - 1.5,
+            rng.next_f32() * 2.0 - 1.0,
+        );
+        let q = closest_on_triangle(&v, p);
+        let best = grid
+            .iter()
+            .map(|g| g.distance(p))
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            q.distance(p) <= best + 1e-5,
+            "{p:?}: {q:?} at {} > {best}",
+            q.distance(p)
+        );
+        assert!(
+            q.distance(p) >= best - 0.02,
+            "{p:?}: {q:?} not on the triangle"
+        );
+    }
+}
+
+#[test]
+fn stratified_samples_cover_strata() {
+    let mut rng = SplitMix64::new(3);
+    let mut s = Vec::new();
+    stratified_2d(8, &mut rng, &mut s);
+    let mut cu = [0; 8];
+    let mut cv = [0; 8];
+    for p in &s {
+        cu[(p[0] * 8.0) as usize] += 1;
+        cv[(p[1] * 8.0) as usize] += 1;
+    }
+    assert_eq!(cu, [1; 8]);
+    assert_eq!(cv, [1; 8]);
+}

@@ -1,0 +1,384 @@
+//! Refinement: one sweep of the oracle over the links, a chunk at a time.
+//!
+//! Each pass decides every link of a chunk in parallel (rayon `map` + `collect` keeps the
+//! order), then creates the children that the decisions need sequentially in ascending
+//! element order, then replaces split links by their children links in list order.
+//!
+//! Resolution: both ends of a link at the minimum element area while the oracle still asks
+//! for refinement make the link unresolved; its near-field kernel integrates more finely, and
+//! where its transfer varies across a surface receiver (a shadow boundary, a close source) the
+//! receiver splits up to `shadow_levels` further levels. A subdivided source whose children's
+//! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
+//! samples land on.
+
+use super::Solver;
+use crate::config::Oracle;
+use crate::element::{Elements, Kind};
+use crate::formfactor::KernelCtx;
+use crate::link::{Link, LinkSet, Sample, NO_SAMPLES};
+use crate::oracle::{self, Action};
+use glam::DVec3;
+use hirad_core::{Error, Result};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Links decided at a time in a refinement pass (see [`Solver::refine_chunk`]).
+const REFINE_CHUNK: usize = 1 << 18;
+
+/// What refinement decides for a link: the action, the link (evaluated when kept), the rays
+/// cast, and the samples of a kept link from a directional cluster.
+type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
+
+impl Solver<'_> {
+    /// One refinement sweep over every link (the root self-link on the first iteration).
+    pub(super) fn refine(&mut self, first: bool, cancel: &AtomicBool) -> Result<()> {
+        let per_link = self.cfg.shadow_rays.max(1);
+        let (mut frontier, mut samples): (Vec<Link>, Vec<Sample>) = if first {
+            (vec![Link::new(0, 0)], Vec::new())
+        } else {
+            let set = std::mem::take(&mut self.set);
+            (set.links, set.samples)
+        };
+        // The gather rebuilds its hand-outs and deposits from the refined links.
+        self.entries = Vec::new();
+        self.deposits = Vec::new();
+        let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
+        while !frontier.is_empty() {
+            // One pass over the frontier, a chunk at a time: the decisions of a chunk are all
+            // that is held beside the links, and the frontier's memory is given back as it is
+            // consumed (reversed, so that chunks come off its end in order).
+            frontier.reverse();
+            let mut next: Vec<Link> = Vec::new();
+            while !frontier.is_empty() {
+                let mut chunk =
+                    frontier.split_off(frontier.len() - frontier.len().min(REFINE_CHUNK));
+                frontier.shrink_to_fit();
+                chunk.reverse();
+                self.refine_chunk(
+                    &chunk,
+                    (&mut done, &mut next, &mut samples),
+                    frontier.len(),
+                    cancel,
+                )?;
+            }
+            frontier = next;
+        }
+        self.set = LinkSet::from_links(done, &samples, per_link);
+        self.note_peak();
+        Ok(())
+    }
+
+    /// Decide the links of `chunk`: kept links go to `done` (their samples to `samples`), the
+    /// children of split ones to `next`; `rest` links of the pass are still to come. When the
+    /// growth would pass the memory budget, the chunk is decided again without refinement.
+    pub(super) fn refine_chunk(
+        &mut self,
+        chunk: &[Link],
+        (done, next, samples): (&mut Vec<Link>, &mut Vec<Link>, &mut Vec<Sample>),
+        rest: usize,
+        cancel: &AtomicBool,
+    ) -> Result<()> {
+        let oracle_kind = self.cfg.refine;
+        loop {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            let allow = !self.budget_hit;
+            let decided: Vec<Decided> = {
+                let ctx = self.ctx();
+                let this = &*self;
+                chunk
+                    .par_iter()
+                    .map(|l| this.decide(&ctx, l, allow, oracle_kind))
+                    .collect()
+            };
+            // Growth of this chunk.
+            let mut new_links = 0usize;
+            let mut to_split: Vec<u32> = Vec::new();
+            for (a, l, _, _) in &decided {
+                let nk = |id: u32| -> usize {
+                    let e = &self.el.elems[id as usize];
+                    if e.kind == Kind::Surface {
+                        4
+                    } else {
+                        e.num_children as usize
+                    }
+                };
+                match a {
+                    Action::SplitRecv => {
+                        new_links += nk(l.recv);
+                        to_split.push(l.recv);
+                    }
+                    Action::SplitSrc => {
+                        new_links += nk(l.src);
+                        to_split.push(l.src);
+                    }
+                    Action::SplitBoth => new_links += nk(l.recv) * nk(l.recv),
+                    _ => {}
+                }
+            }
+            to_split.retain(|&id| {
+                let e = &self.el.elems[id as usize];
+                e.kind == Kind::Surface && e.num_children == 0
+            });
+            to_split.sort_unstable();
+            to_split.dedup();
+            let projected = self
+                .memory_now(done.len() + rest + chunk.len() + next.len() + new_links)
+                + (to_split.len() * 4 * (Elements::BYTES_PER_ELEMENT + 8)) as u64;
+            for (_, _, r, _) in &decided {
+                self.rays += r;
+            }
+            if let Some(budget) = self.cfg.max_memory {
+                if new_links > 0 && projected > budget {
+                    self.budget_hit = true;
+                    let msg = format!(
+                        "memory budget {:.3} GB reached ({} links, {} elements): refinement \
+                         stopped, the solution is coarser than eps = {:.3e} asks for",
+                        budget as f64 / 1e9,
+                        done.len() + rest + chunk.len() + next.len(),
+                        self.el.len(),
+                        self.eps
+                    );
+                    tracing::warn!("{msg}");
+                    self.stats.warnings.push(msg);
+                    // Decide this chunk again without refinement: every link is kept.
+                    continue;
+                }
+            }
+            for &id in &to_split {
+                self.el.subdivide(id);
+            }
+            if !to_split.is_empty() {
+                let n_before = self.h_cluster.len();
+                self.h_cluster.resize(self.el.len(), 0.0);
+                self.k_sum.resize(self.el.len(), 0.0);
+                if self.has_sun_sky {
+                    self.compute_direct(n_before as u32, self.el.len() as u32);
+                }
+            }
+            next.reserve(new_links);
+            for (a, mut l, _, m) in decided {
+                match a {
+                    Action::Keep => {
+                        if let Some(m) = m {
+                            l.samples = samples.len() as u32;
+                            samples.extend_from_slice(&m);
+                        }
+                        done.push(l)
+                    }
+                    Action::Drop => {}
+                    Action::SplitRecv => {
+                        for c in self.el.children(l.recv) {
+                            next.push(Link::new(c, l.src));
+                        }
+                    }
+                    Action::SplitSrc => {
+                        for c in self.el.children(l.src) {
+                            next.push(Link::new(l.recv, c));
+                        }
+                    }
+                    Action::SplitBoth => {
+                        let kids: Vec<u32> = self.el.children(l.recv).collect();
+                        for &a in &kids {
+                            for &b in &kids {
+                                next.push(Link::new(a, b));
+                            }
+                        }
+                    }
+                }
+            }
+            // The peak counts the links held now: decided, kept, to come and new.
+            self.links = std::mem::take(done);
+            let held = rest + chunk.len() + next.capacity();
+            let m = self.memory_now(held)
+                + (chunk.len() * std::mem::size_of::<Decided>()
+                    + samples.capacity() * std::mem::size_of::<Sample>()) as u64;
+            self.peak = self.peak.max(m);
+            *done = std::mem::take(&mut self.links);
+            return Ok(());
+        }
+    }
+
+    pub(super) fn ctx(&self) -> KernelCtx<'_> {
+        KernelCtx {
+            elems: &self.el,
+            tree: self.tree,
+            vis: self.vis,
+            covers: &self.covers,
+            n_rays: self.cfg.shadow_rays as usize,
+            seed: self.cfg.seed,
+            emission: self.cfg.cluster_emission,
+            reception: self.cfg.cluster_receive,
+        }
+    }
+
+    /// Decide what to do with one link; kept links come back evaluated.
+    pub(super) fn decide(&self, ctx: &KernelCtx, l: &Link, allow: bool, ok: Oracle) -> Decided {
+        let (ri, sj) = (l.recv, l.src);
+        let r = &self.el.elems[ri as usize];
+        let s = &self.el.elems[sj as usize];
+        if ri == sj {
+            return if r.kind == Kind::Cluster && r.num_children > 0 {
+                (Action::SplitBoth, *l, 0, None)
+            } else {
+                (Action::Drop, *l, 0, None)
+            };
+        }
+        let mut link = *l;
+        let mut rays = 0;
+        let mut eval = None;
+        let mut est_raw = None;
+        let mut members = None;
+        // The link's estimate is a bound where the ends are near ([`KernelCtx::near_bound`]).
+        let mut bounded = false;
+        if !link.evaluated() {
+            if ctx.is_zero(ri, sj) {
+                return (Action::Drop, link, 0, None);
+            }
+            // Error bound of the isotropic model of a cluster source, per unit F̃.
+            let g = if self.cfg.anisotropy_refine {
+                ctx.anisotropy(ri, sj)
+            } else {
+                0.0
+            };
+            // Near a cluster end the centroid estimate misses the members next to the other
+            // end: judge such links on a geometric bound of their kernel instead, down to
+            // the minimum element area (below it on both ends refinement cannot resolve the
+            // near field, and opening clusters of finely tessellated objects only multiplies
+            // links).
+            let near = if (r.area.max(s.area) as f64) < self.min_area {
+                0.0
+            } else {
+                ctx.near_bound(ri, sj)
+            };
+            bounded = near > 0.0;
+            match ok {
+                Oracle::Bf => {
+                    let e = ctx.estimate(ri, sj);
+                    est_raw = Some(e);
+                    link.est = (e * g.max(1.0)).max(near) as f32;
+                }
+                Oracle::Error => {
+                    let ev = ctx.evaluate(ri, sj, true);
+                    rays += ev.rays;
+                    link.est = (ev.kmax - ev.kmin).max(ev.est * g).max(near).max(0.0) as f32;
+                    eval = Some(ev);
+                }
+            }
+        }
+        // The split the oracle asks for when it judges the link on `est`, if either end can be
+        // split.
+        let split = |est: f64| {
+            (allow
+                && oracle::wants_refine(
+                    ok,
+                    self.eps,
+                    est,
+                    self.el.b[sj as usize],
+                    r.rho.as_dvec3(),
+                ))
+            .then(|| oracle::choose_split(r, s, self.min_area))
+            .flatten()
+        };
+        if let Some(a) = split(link.est as f64) {
+            return (a, link, rays, None);
+        }
+        // A subdivided surface source whose children's radiosity differs by more than the
+        // oracle allows: its samples take the radiosity of the leaf they land on (a link
+        // evaluated before, on the mean, is evaluated again).
+        let leaves = s.kind == Kind::Surface && s.num_children > 0 && {
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::ZERO);
+            for c in self.el.children(sj) {
+                lo = lo.min(self.el.b[c as usize]);
+                hi = hi.max(self.el.b[c as usize]);
+            }
+            oracle::wants_refine(ok, self.eps, link.est as f64, hi - lo, r.rho.as_dvec3())
+        };
+        // A near-field kernel keeps no per-sample leaves: such a link goes down to the
+        // source's children instead.
+        if leaves && allow && ctx.is_near_field(ri, sj) {
+            return (Action::SplitSrc, link, rays, None);
+        }
+        if !link.evaluated() || (leaves && link.samples == NO_SAMPLES) {
+            // The oracle asks for refinement, but both ends are at their minimum size.
+            let unresolved = allow
+                && oracle::wants_refine(
+                    ok,
+                    self.eps,
+                    link.est as f64,
+                    self.el.b[sj as usize],
+                    r.rho.as_dvec3(),
+                );
+            let mut ev = match eval {
+                Some(ev) => ev,
+                None => {
+                    let ev = ctx.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                    rays += ev.rays;
+                    ev
+                }
+            };
+            // An unresolved link whose transfer varies across a surface receiver by more than
+            // ε — a shadow boundary crosses it (its rays disagree) or the source is close
+            // beside it (the unoccluded kernel varies) — may split the receiver
+            // `shadow_levels` levels below the minimum area: a view sees the parts of an
+            // element apart (the lit side of a shadow, a ceiling beside a lamp). Keeping or
+            // splitting on the rays' outcome would bias the kept links (those whose rays all
+            // missed the source would stay, those that saw it would be drawn again), so a kept
+            // link that could have split takes a kernel from independent rays.
+            if unresolved && r.kind == Kind::Surface {
+                if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
+                    let varies = || {
+                        let (fmin, fmax) = ctx.spread(ri, sj);
+                        oracle::wants_refine(
+                            Oracle::Error,
+                            self.eps,
+                            fmax - fmin,
+                            self.el.b[sj as usize],
+                            r.rho.as_dvec3(),
+                        )
+                    };
+                    if ev.mixed || varies() {
+                        return (a, *l, rays, None);
+                    }
+                    let fresh = KernelCtx {
+                        seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
+                        ..*ctx
+                    };
+                    ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                    rays += ev.rays;
+                }
+            }
+            link.k = ev.k as f32;
+            link.deposit = ev.deposit;
+            link.draw = ev.draw;
+            if !ev.members.is_empty() {
+                members = Some(ev.members.into_boxed_slice());
+            }
+            // A cluster receiver hands what it receives to all of its surfaces that face the
+            // source: when some samples see the source and some do not, some surfaces get up
+            // to the whole transfer wrongly, and interreflection among the cluster's surfaces
+            // multiplies that by up to ρ / (1 − ρ) (a closed thin box of ρ = 0.93: 13×).
+            // Judge such a link on its largest sampled kernel times that gain.
+            if ev.mixed && r.kind == Kind::Cluster {
+                let rho = (r.rho.max_element() as f64).min(0.999);
+                link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
+                if let Some(a) = split(link.est as f64) {
+                    return (a, *l, rays, None);
+                }
+            }
+            // Where no bound judged the link, a sampled kernel above the estimate shows that
+            // the estimate missed something (surfaces of a cluster much nearer the other end
+            // than its centre, or in front of a plane its centre lies behind): judge that.
+            // This keeps the links whose few samples came out low, a bias towards dark, which
+            // is why near links have the bound.
+            if !bounded && ev.k > link.est as f64 {
+                link.est = ev.k as f32;
+                if let Some(a) = split(ev.k) {
+                    return (a, *l, rays, None);
+                }
+            }
+        }
+        (Action::Keep, link, rays, members)
+    }
+}
