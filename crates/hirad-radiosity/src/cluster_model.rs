@@ -1,16 +1,18 @@
 //! The cluster model: how a cluster element emits and receives, with the formulas of the
 //! isotropic (Sillion 1995, the paper's) and the directional (default) emission side by side.
 //!
-//! - Projected area of a cluster of total area `A` towards `d`: isotropic `A/4`; directional
-//!   the order-2 spherical-harmonic expansion `A/4 + N·d/2 + (5/32)(3 dᵀMd − A)` of
-//!   `Σ A_k max(0, n_k·d)` ([`ClusterOrient::projected_area`], within [`SH2_ERROR`]·A).
+//! - Projected area towards `d` of a cluster of surfaces k (area `A_k`, normal `n_k`, total
+//!   `A`, `N = Σ A_k n_k`, `M = Σ A_k n_k n_kᵀ`): isotropic `A/4`; directional the order-2
+//!   spherical-harmonic expansion `A/4 + N·d/2 + (5/32)(3 dᵀMd − A)` of `Σ A_k max(0, n_k·d)`
+//!   ([`ClusterOrient::projected_area`], within [`SH2_ERROR`]` · A`).
 //! - Estimate `F̃` (`point_kernel`): the point-to-disk kernel of that projected area.
 //! - Sampled kernel (`KernelCtx::sample_kernel`): isotropic, the estimate at the centre;
-//!   directional, a surface k drawn with probability `A_k/A` gives `F(x → k) · A/A_k`.
+//!   directional, a surface k drawn with probability `A_k/A` gives `F(x → k) · A/A_k`, and the
+//!   link keeps each sample's surface, whose own radiosity the gather takes.
 //! - Hand-out weight ([`hand_out_weight`]): the share of a cluster's irradiance a surface gets:
 //!   oriented reception `max(0, n·ŝ)` ([`facing_weight`] when directional), isotropic `1/4`.
-//! - Error bound ([`KernelCtx::anisotropy`]): `g = max(0, P_max/P_m − 1)` bounds the transfer
-//!   error per unit `F̃` of the model's projected area `P_m` against the true `P(d)`.
+//! - Error bound ([`KernelCtx::anisotropy`]): `g = max(0, P_max/P_m − 1)`, the transfer error
+//!   per unit `F̃` of the model's projected area `P_m` against the true one.
 
 use crate::config::{ClusterEmission, Reception};
 use crate::element::{Element, Kind};
@@ -274,8 +276,7 @@ impl KernelCtx<'_> {
     /// sample point lies on surface element `member`. For a directional cluster source the
     /// member is drawn with probability `A_k / A`, so `F(x → k) · A / A_k` with the analytic
     /// point-to-polygon form factor is an unbiased estimate of the form factor of the
-    /// cluster's contents (a disk of the whole cluster's area at the sample point, the
-    /// previous estimate, under-counts near clusters several times: `A / (π r² + A)`).
+    /// cluster's contents.
     pub(crate) fn sample_kernel(&self, x: Vec3, n: Vec3, src: &End, member: u32) -> f64 {
         match *src {
             End::Cluster {

@@ -21,13 +21,16 @@ pub use crate::cluster_model::{facing_weight, ClusterOrient};
 /// Kind of an element.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
+    /// A triangle: an input triangle (a root) or a part of one.
     Surface,
+    /// A node of the cluster tree.
     Cluster,
 }
 
 /// One element of the hierarchy.
 #[derive(Clone, Debug)]
 pub struct Element {
+    /// Surface or cluster.
     pub kind: Kind,
     /// Back face of a two-sided surface.
     pub back: bool,
@@ -38,6 +41,7 @@ pub struct Element {
     /// Surfaces: id of the first of 4 contiguous children; clusters: offset into
     /// [`Elements::cluster_kids`]. Meaningless when `num_children == 0`.
     pub first_child: u32,
+    /// Number of children (0: a leaf).
     pub num_children: u32,
     /// Surfaces: input triangle; clusters: cluster node id.
     pub tri: u32,
@@ -72,9 +76,11 @@ impl Element {
 /// The arena of elements with their radiosity state.
 #[derive(Clone, Debug)]
 pub struct Elements {
+    /// The elements, indexed by id.
     pub elems: Vec<Element>,
     /// Children lists of clusters.
     pub cluster_kids: Vec<u32>,
+    /// Number of cluster elements (ids `0..num_clusters`).
     pub num_clusters: u32,
     /// Id of the root surface element of triangle 0 (front face).
     pub first_root: u32,
@@ -348,7 +354,9 @@ impl Elements {
 
 /// Iterator over the children of an element.
 pub enum ChildIter<'a> {
+    /// A cluster's children, from [`Elements::cluster_kids`].
     Slice(std::slice::Iter<'a, u32>),
+    /// A split surface's 4 contiguous children.
     Range(std::ops::Range<u32>),
 }
 

@@ -1,8 +1,11 @@
+#![warn(missing_docs)]
+
 //! The hierarchical radiosity solver with clustering (`spec/radiosity.md`).
 //!
 //! - [`element`]: one arena of surface elements (triangle quadtrees) and cluster elements;
 //! - [`link`]: links stored flat and grouped by receiver;
 //! - [`formfactor`]: point-to-disk and analytic point-to-polygon form factors, sampled kernels;
+//! - [`cluster_model`]: the isotropic and directional cluster emission models side by side;
 //! - [`oracle`]: the `bf` and `error` refinement oracles;
 //! - [`visibility`]: shadow rays through the cluster tree (and the volume hook);
 //! - [`overlap`]: coplanar overlapping triangles, each overlap given to one of them;

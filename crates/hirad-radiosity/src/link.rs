@@ -7,7 +7,9 @@ use serde::{Deserialize, Serialize};
 /// A link from `src` to `recv`: the receiver gathers `k · B_src` (irradiance, W/m²).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Link {
+    /// Receiver element id.
     pub recv: u32,
+    /// Source element id.
     pub src: u32,
     /// Kernel with visibility (form factor receiver → source); NaN until evaluated.
     pub k: f32,
@@ -140,11 +142,13 @@ impl LinkKind {
 /// one group per receiver.
 #[derive(Clone, Debug, Default)]
 pub struct LinkSet {
+    /// The links, sorted by receiver.
     pub links: Vec<Link>,
     /// `(receiver, start, end)` ranges into `links`, receivers ascending.
     pub groups: Vec<(u32, u32, u32)>,
     /// Samples of the links with [`Link::samples`], `per_link` each.
     pub samples: Vec<Sample>,
+    /// Samples per link that has them (the shadow rays per link).
     pub per_link: u32,
 }
 

@@ -5,8 +5,11 @@ use serde::{Deserialize, Serialize};
 /// One refine+gather iteration.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct IterStat {
+    /// Iteration number, from 1.
     pub iter: u32,
+    /// Elements after the iteration.
     pub elements: usize,
+    /// Links after the iteration.
     pub links: usize,
     /// Total radiosity power Σ A·B over root surfaces (sum of the RGB channels, W).
     pub power: f64,
@@ -23,8 +26,11 @@ pub struct PhaseTimes {
     pub setup: f64,
     /// Refinement including kernel evaluation and shadow rays.
     pub refine: f64,
+    /// Gather.
     pub gather: f64,
+    /// Push-pull (including the power balance).
     pub push_pull: f64,
+    /// The whole solve.
     pub total: f64,
 }
 
@@ -33,7 +39,9 @@ pub struct PhaseTimes {
 pub struct MemoryStats {
     /// Peak of our own counted bytes (elements + links + gather buffers).
     pub peak_counted_bytes: u64,
+    /// Bytes of the element arena (and per-element gather sums) at the end.
     pub element_bytes: u64,
+    /// Bytes of the final link set.
     pub link_bytes: u64,
     /// Process peak resident set (VmHWM of /proc/self/status), when available.
     pub vm_hwm_bytes: Option<u64>,
@@ -64,21 +72,31 @@ pub struct PowerStats {
 /// Everything a solve reports.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SolveStats {
+    /// Scene name.
     pub scene: String,
+    /// Input triangles.
     pub triangles: usize,
+    /// Cluster tree strategy.
     pub strategy: String,
+    /// Nodes of the cluster tree.
     pub cluster_nodes: usize,
+    /// Refinement oracle (`bf` or `error`).
     pub refine: String,
     /// The refinement threshold used (W/m²).
     pub eps: f64,
     /// Minimum element area used.
     pub min_area: f64,
+    /// Visibility mode (`rays`, `volume` or `none`).
     pub visibility: String,
+    /// Shadow rays per link.
     pub shadow_rays: u32,
+    /// Surfaces have back faces.
     pub two_sided: bool,
+    /// Cluster reception model (`oriented` or `isotropic`).
     pub cluster_receive: String,
     /// Cluster emission model (`isotropic` or `directional`).
     pub cluster_emission: String,
+    /// Worker threads (results do not depend on them).
     pub threads: usize,
     /// Triangles partly under a coplanar triangle that owns the overlap (`radiosity::overlap`).
     pub covered_triangles: usize,
@@ -87,24 +105,39 @@ pub struct SolveStats {
     pub shut_triangles: usize,
     /// All elements (clusters + surface elements).
     pub elements: usize,
+    /// Cluster elements.
     pub cluster_elements: usize,
+    /// Surface elements (roots and their subdivisions).
     pub surface_elements: usize,
+    /// Surface elements without children.
     pub leaf_elements: usize,
+    /// Links of the solution.
     pub links: usize,
+    /// Surface–surface links.
     pub links_ss: usize,
+    /// Links between a cluster and a surface (either direction).
     pub links_cs: usize,
+    /// Cluster–cluster links.
     pub links_cc: usize,
     /// Percentage of the gathered power that went through links involving clusters.
     pub cluster_energy_percent: f64,
+    /// Shadow and sun/sky rays cast.
     pub rays: u64,
+    /// Iterations run.
     pub iterations: u32,
+    /// The relative change of power fell below `tol_converge`.
     pub converged: bool,
+    /// Per iteration.
     pub history: Vec<IterStat>,
+    /// Wall time per phase.
     pub time: PhaseTimes,
+    /// Memory accounting.
     pub memory: MemoryStats,
+    /// Power balance of the last iteration.
     pub power: PowerStats,
     /// True when nothing emits (no emitter, sun or sky): the solution is zero.
     pub no_light: bool,
+    /// Warnings of the solve (not converged, memory budget, no light).
     pub warnings: Vec<String>,
     /// Leaves whose gain `ρ · Σ K` (reflectance times the sum of their link kernels) exceeded
     /// 1 in the last gather (form factors of a leaf sum to at most 1: these kernels

@@ -30,8 +30,9 @@ pub struct KernelEval {
     pub k: f64,
     /// Unoccluded estimate `F̃` (the `bf` oracle's quantity, per unit source radiosity).
     pub est: f64,
-    /// Lower and upper kernel bounds (with visibility bounds), for the `error` oracle.
+    /// Lower kernel bound (with visibility bounds), for the `error` oracle.
     pub kmin: f64,
+    /// Upper kernel bound (with visibility bounds), for the `error` oracle.
     pub kmax: f64,
     /// Shadow rays cast.
     pub rays: u64,
@@ -79,8 +80,11 @@ pub(super) fn deposit_at(
 /// Everything needed to evaluate link kernels.
 #[derive(Clone, Copy)]
 pub struct KernelCtx<'a> {
+    /// The element arena.
     pub elems: &'a Elements,
+    /// The cluster tree of the elements.
     pub tree: &'a ClusterTree,
+    /// Shadow rays.
     pub vis: &'a Visibility<'a>,
     /// Coplanar overlaps: covered points neither receive nor emit.
     pub covers: &'a Covers,

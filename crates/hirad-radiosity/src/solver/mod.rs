@@ -41,11 +41,14 @@ const REFINE_DRIFT: f64 = 0.05;
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
 pub struct Solution {
+    /// The element hierarchy with its radiosity `b` (W/m²).
     pub elements: Elements,
+    /// The final links, grouped by receiver.
     pub links: LinkSet,
     /// Area-averaged incident irradiance per root surface element (index `id - first_root`),
     /// including sun and sky.
     pub root_irradiance: Vec<DVec3>,
+    /// Statistics of the solve.
     pub stats: SolveStats,
 }
 
