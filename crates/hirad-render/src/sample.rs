@@ -87,14 +87,22 @@ impl Lights {
     /// between the column and its alias.
     #[inline]
     pub(crate) fn pick(&self, u: f64) -> &LightTri {
-        let n = self.tris.len();
-        let x = u * n as f64;
-        let i = (x as usize).min(n - 1);
-        if x - (i as f64) < self.prob[i] {
-            &self.tris[i]
-        } else {
-            &self.tris[self.alias[i] as usize]
-        }
+        &self.tris[alias_pick(&self.prob, &self.alias, u)]
+    }
+}
+
+/// The column an alias table `(prob, alias)` (of [`alias_table`]) picks for a uniform
+/// `u ∈ [0, 1)`: the integer part of `u·n` picks a column, the fraction decides between the
+/// column and its alias.
+#[inline]
+pub(crate) fn alias_pick(prob: &[f64], alias: &[u32], u: f64) -> usize {
+    let n = prob.len();
+    let x = u * n as f64;
+    let i = (x as usize).min(n - 1);
+    if x - (i as f64) < prob[i] {
+        i
+    } else {
+        alias[i] as usize
     }
 }
 

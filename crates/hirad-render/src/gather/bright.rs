@@ -5,7 +5,7 @@
 
 use super::lookup::SolutionLookup;
 use super::{Counts, Gatherer};
-use crate::sample::{alias_table, power_heuristic};
+use crate::sample::{alias_pick, alias_table, power_heuristic};
 use glam::Vec3;
 use hirad_accel::ray::RayCaster;
 use hirad_scene::Scene;
@@ -113,14 +113,7 @@ impl Bright {
 
     #[inline]
     pub(super) fn pick(&self, u: f64) -> &BrightTri {
-        let n = self.tris.len();
-        let x = u * n as f64;
-        let i = (x as usize).min(n - 1);
-        if x - (i as f64) < self.prob[i] {
-            &self.tris[i]
-        } else {
-            &self.tris[self.alias[i] as usize]
-        }
+        &self.tris[alias_pick(&self.prob, &self.alias, u)]
     }
 }
 
