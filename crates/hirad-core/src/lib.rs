@@ -1,7 +1,7 @@
 #![warn(missing_docs)]
 //! The foundation every hirad crate stands on: the error type, geometry helpers (boxes),
-//! atomic output files, seeded random numbers, the progress hook and the `choice!` macro for
-//! command-line choices.
+//! atomic output files, seeded random numbers, Morton codes, a `u64` hasher, the progress hook
+//! and the `choice!` macro for command-line choices.
 
 /// `parse` (case-insensitive) and `name` of a command-line choice, from one table of names;
 /// the error lists the names ("unknown refinement oracle 'x' (bf or error)").
