@@ -18,25 +18,25 @@ pub struct Link {
     /// First of the link's samples in [`LinkSet::samples`] (directional cluster sources), or
     /// [`NO_SAMPLES`]: the receiver then gathers `k · B_src`.
     pub samples: u32,
-    /// Where below a surface receiver the transfer lands ([`Deposit`]); none: evenly.
+    /// A surface receiver's sample points and whether their rays saw the source
+    /// ([`Deposit`]), pooled over the receiver's links to shape its light.
     pub deposit: Deposit,
     /// Where below a surface source the transfer leaves from ([`Deposit`]): the mean
     /// radiosity there instead of the source's; none: the source's.
     pub draw: Deposit,
 }
 
-/// Where a link's transfer lands below its surface receiver, and leaves from below its
-/// surface source, when some of its shadow rays are open and some are not: in equal shares
-/// at the ends of the open rays, as paths down the midpoint subdivision, instead of evenly
-/// over the receiver and with the source's mean radiosity. Over the many weak links a
-/// receiver gathers, this keeps the part of a wall that the room sees from sharing its light
-/// with the part hidden behind furniture pressed close to it, which no single link's oracle
-/// would refine; on the source side, the light of the part that sees the receiver is what
-/// goes there (a mean over the hidden part too would lose the light the deposits put where
-/// it is seen).
+/// Points of a link below its ends, as paths down the midpoint subdivision. On a surface
+/// receiver: up to four of its sample points and whether their shadow rays were open;
+/// pooled over all the receiver's links they show which parts of it see the room (a wall
+/// behind furniture pressed close to it), which no single weak link's oracle would refine.
+/// On a surface source whose rays disagree: the ends of open rays, where the transfer
+/// leaves from (the mean radiosity there, not the source's mean over parts the receiver
+/// does not see).
 ///
-/// Code: bits 0..2 the depth (levels below the receiver; 0: no deposit), bits 2..5 the
-/// number of points (1..=4), bits 8 + 6i.. the path of point i (2 bits per level).
+/// Code: bits 0..2 the depth (levels below the receiver; 0: no deposit), bits 2..4 the
+/// number of points minus one, bits 4..8 the open mask (bit i: point i's ray was open),
+/// bits 8 + 6i.. the path of point i (2 bits per level).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Deposit(pub u32);
 
@@ -47,17 +47,29 @@ impl Deposit {
     pub const POINTS: usize = 4;
 
     /// A deposit at the points with these paths (at most [`Self::POINTS`], each
-    /// [`Self::LEVELS`] deep); none for no path.
+    /// [`Self::LEVELS`] deep), all open; none for no path.
     pub fn new(paths: &[u32]) -> Deposit {
+        Self::with_mask(paths, (1 << Self::POINTS) - 1)
+    }
+
+    /// A deposit at the points with these paths whose rays were open where bit i of `open`
+    /// is set; none for no path.
+    pub fn with_mask(paths: &[u32], open: u32) -> Deposit {
         let c = paths.len().min(Self::POINTS);
         if c == 0 {
             return Deposit(0);
         }
-        let mut code = Self::LEVELS | (c as u32) << 2;
+        let mask = open & ((1 << c) - 1);
+        let mut code = Self::LEVELS | ((c as u32 - 1) << 2) | (mask << 4);
         for (i, p) in paths[..c].iter().enumerate() {
             code |= (p & 0x3f) << (8 + 6 * i);
         }
         Deposit(code)
+    }
+
+    /// One open point at `path`, followed `depth` levels.
+    pub fn single(path: u32, depth: u32) -> Deposit {
+        Deposit(depth.min(Self::LEVELS) | 1 << 4 | (path & 0x3f) << 8)
     }
 
     /// Levels below the receiver the paths are followed (0: the transfer is spread evenly).
@@ -70,9 +82,23 @@ impl Deposit {
         Deposit(self.0 & !3 | d.min(self.depth()))
     }
 
-    /// Number of points.
+    /// Number of points (0 for none).
     pub fn points(self) -> usize {
-        ((self.0 >> 2) & 7) as usize
+        if self.0 == 0 {
+            0
+        } else {
+            ((self.0 >> 2) & 3) as usize + 1
+        }
+    }
+
+    /// True when point `i`'s ray was open.
+    pub fn open(self, i: usize) -> bool {
+        (self.0 >> (4 + i)) & 1 == 1
+    }
+
+    /// Number of open points.
+    pub fn open_points(self) -> usize {
+        (0..self.points()).filter(|&i| self.open(i)).count()
     }
 
     /// Path of point `i`.
@@ -232,5 +258,34 @@ impl LinkSet {
         self.links.capacity() * std::mem::size_of::<Link>()
             + self.groups.capacity() * 12
             + self.samples.capacity() * std::mem::size_of::<Sample>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Deposit;
+
+    #[test]
+    fn deposit_codes_keep_paths_and_open_rays() {
+        assert_eq!(Deposit::with_mask(&[], 0b1111).points(), 0);
+        let d = Deposit::with_mask(&[0b11_01_10, 0, 0b10_10_10], 0b1101);
+        assert_eq!(
+            (d.points(), d.depth(), d.open_points()),
+            (3, Deposit::LEVELS, 2)
+        );
+        assert_eq!(
+            [d.path(0), d.path(1), d.path(2)],
+            [0b11_01_10, 0, 0b10_10_10]
+        );
+        assert_eq!([d.open(0), d.open(1), d.open(2)], [true, false, true]);
+        let all = Deposit::new(&[1, 2, 3, 4, 5]);
+        assert_eq!((all.points(), all.open_points()), (4, 4));
+        let t = all.truncated(1);
+        assert_eq!((t.depth(), t.points(), t.path(3)), (1, 4, 4));
+        let s = Deposit::single(0b01_11, 2);
+        assert_eq!(
+            (s.points(), s.depth(), s.path(0), s.open(0)),
+            (1, 2, 0b01_11, true)
+        );
     }
 }

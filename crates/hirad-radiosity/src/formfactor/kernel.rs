@@ -45,36 +45,59 @@ pub struct KernelEval {
     /// walls, a lamp behind a wall of the same cluster, a ceiling's bright band right above a
     /// lamp that hangs in front of it).
     pub members: Vec<(u32, f32)>,
-    /// Surface receiver whose rays disagree: where the transfer lands ([`Deposit`]).
+    /// Surface receiver: sample points and whether their rays were open ([`Deposit`]).
     pub deposit: Deposit,
     /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
     pub draw: Deposit,
 }
 
-/// Where a mixed link's transfer lands on a surface receiver (vertices `vr`) and where a
-/// surface source (`vs`) sends it from: up to [`Deposit::POINTS`] of the sample pairs
-/// (receiver point, source point) whose rays were open, drawn evenly among them.
+/// What a link records of its samples ([`Deposit`]): on a surface receiver (vertices `vr`),
+/// up to [`Deposit::POINTS`] of its counted sample points `recv` (point, ray open), drawn
+/// evenly among them; on a surface source (`vs`), when some rays were open and some not,
+/// up to as many of the open pairs `seen` (receiver point, source point), where the
+/// transfer leaves from.
 pub(super) fn deposit_at(
     vr: Option<&[Vec3; 3]>,
     vs: Option<&[Vec3; 3]>,
+    recv: &mut [(Vec3, bool)],
     seen: &mut [(Vec3, Vec3)],
     rng: &mut SplitMix64,
 ) -> (Deposit, Deposit) {
-    let c = seen.len().min(Deposit::POINTS);
-    for i in 0..c {
-        let j = i + (rng.next_u64() % (seen.len() - i) as u64) as usize;
-        seen.swap(i, j);
-    }
-    let paths = |v: Option<&[Vec3; 3]>, end: fn(&(Vec3, Vec3)) -> Vec3| -> Deposit {
-        v.map_or(Deposit::default(), |v| {
-            let p: Vec<u32> = seen[..c]
+    let deposit = match vr {
+        Some(v) if !recv.is_empty() => {
+            let c = draw_first(recv, rng);
+            let paths: Vec<u32> = recv[..c]
                 .iter()
-                .map(|s| quad_path(v, end(s), Deposit::LEVELS))
+                .map(|s| quad_path(v, s.0, Deposit::LEVELS))
                 .collect();
-            Deposit::new(&p)
-        })
+            let mask = (0..c).fold(0, |m, i| m | (recv[i].1 as u32) << i);
+            Deposit::with_mask(&paths, mask)
+        }
+        _ => Deposit::default(),
     };
-    (paths(vr, |s| s.0), paths(vs, |s| s.1))
+    let mixed = recv.iter().any(|s| s.1) && recv.iter().any(|s| !s.1);
+    let draw = match vs {
+        Some(v) if mixed && !seen.is_empty() => {
+            let c = draw_first(seen, rng);
+            let paths: Vec<u32> = seen[..c]
+                .iter()
+                .map(|s| quad_path(v, s.1, Deposit::LEVELS))
+                .collect();
+            Deposit::new(&paths)
+        }
+        _ => Deposit::default(),
+    };
+    (deposit, draw)
+}
+
+/// Moves up to [`Deposit::POINTS`] items drawn evenly from `items` to its front; their number.
+fn draw_first<T>(items: &mut [T], rng: &mut SplitMix64) -> usize {
+    let c = items.len().min(Deposit::POINTS);
+    for i in 0..c {
+        let j = i + (rng.next_u64() % (items.len() - i) as u64) as usize;
+        items.swap(i, j);
+    }
+    c
 }
 
 /// Everything needed to evaluate link kernels.
@@ -352,6 +375,8 @@ impl KernelCtx<'_> {
         let mut n_open = 0usize;
         // (receiver point, source point) of the samples whose rays were open.
         let mut seen = Vec::new();
+        // Receiver points of the samples that count, and whether their rays were open.
+        let mut recv = Vec::new();
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -471,6 +496,7 @@ impl KernelCtx<'_> {
                 if vis > 0.0 {
                     seen.push((x, y));
                 }
+                recv.push((x, vis > 0.0));
             }
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
@@ -506,20 +532,16 @@ impl KernelCtx<'_> {
         if !fmin.is_finite() {
             fmin = 0.0;
         }
-        let (deposit, draw) = if open && blocked {
-            let vr = match ri {
-                End::Surface { v, .. } => Some(v),
-                _ => None,
-            };
-            // A source read through its leaves takes each sample's own radiosity already.
-            let vs = match sj {
-                End::Surface { v, .. } if !source_leaves => Some(v),
-                _ => None,
-            };
-            deposit_at(vr.as_ref(), vs.as_ref(), &mut seen, &mut rng)
-        } else {
-            Default::default()
+        let vr = match ri {
+            End::Surface { v, .. } => Some(v),
+            _ => None,
         };
+        // A source read through its leaves takes each sample's own radiosity already.
+        let vs = match sj {
+            End::Surface { v, .. } if !source_leaves => Some(v),
+            _ => None,
+        };
+        let (deposit, draw) = deposit_at(vr.as_ref(), vs.as_ref(), &mut recv, &mut seen, &mut rng);
         KernelEval {
             k,
             est,

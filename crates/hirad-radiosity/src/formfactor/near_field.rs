@@ -136,6 +136,7 @@ impl KernelCtx<'_> {
         // The open rays' ends, each taken to carry an equal share (the grid end drawn in
         // proportion to the form factor, the other end uniform over its part in front).
         let mut seen = Vec::new();
+        let mut recv = Vec::new();
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
@@ -154,13 +155,10 @@ impl KernelCtx<'_> {
                 // (receiver point, source point)
                 seen.push(if reciprocal { (y, x) } else { (x, y) });
             }
+            recv.push((if reciprocal { y } else { x }, vis > 0.0));
         }
         let mixed = vmin < 1.0 && vmax > 0.0;
-        let (deposit, draw) = if mixed {
-            deposit_at(Some(&vr), Some(&vs), &mut seen, rng)
-        } else {
-            Default::default()
-        };
+        let (deposit, draw) = deposit_at(Some(&vr), Some(&vs), &mut recv, &mut seen, rng);
         let mut fu = acc / n_open.max(1) as f64;
         if reciprocal {
             // The mean over the receiver: F_rs = A_s F_sr / A_r, where F_sr is the mean over

@@ -1,19 +1,25 @@
 //! Gather: each receiver sums `K · B_src` over its links, in parallel per receiver.
 //!
 //! Cluster receivers keep one [`Entry`] per link, handed to their surfaces in push-pull.
-//! Deposits: a link whose shadow rays disagree hands its transfer to the parts of a surface
-//! receiver where its rays saw the source ([`Deposit`]), not evenly over the receiver, so
-//! that the many weak links no oracle refines do not light what furniture hides.
+//! A subdivided surface receiver's light is shaped by where its links' shadow rays saw their
+//! sources, pooled over all its links ([`Deposit`] holds each link's sample points): a part
+//! gets the light in proportion to its open area times the share of open rays from it, so
+//! that the many weak links no oracle refines do not light what furniture hides, and the
+//! ratio (open rays over rays, not open rays over expected rays) keeps the noise of a few
+//! points per link out of the walls.
 
+use super::push_pull::open_area;
 use super::Solver;
-use crate::element::Kind;
+use crate::element::{Elements, Kind};
 use crate::link::Deposit;
+use crate::overlap::Covers;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-/// A receiver's deposits ([`Deposit`]) are followed down only as many levels as leave this
-/// many of their points per cell on average; below that a cell's share is mostly noise.
-const DEPOSIT_POINTS_PER_CELL: usize = 4;
+/// A receiver's light is shaped only as many levels down as leave this many of its links'
+/// samples per part on average; a part's open share is shrunk towards its parent's as if
+/// this many more samples had the parent's share.
+const SAMPLES_PER_PART: f64 = 4.0;
 
 /// Receivers gathered at a time (see [`Solver::gather`]).
 const GATHER_CHUNK: usize = 1 << 12;
@@ -70,6 +76,7 @@ impl Solver<'_> {
         self.dep_ranges.clear();
         self.dep_ranges.resize(self.el.len(), (0, 0));
         let n_groups = self.set.groups.len();
+        let covers = &self.covers;
         for start in (0..n_groups).step_by(GATHER_CHUNK) {
             let el = &self.el;
             let set = &self.set;
@@ -78,6 +85,7 @@ impl Solver<'_> {
                 .par_iter()
                 .map(|&(r, a, b)| {
                     let re = &el.elems[r as usize];
+                    let mut cells: Cells = [(0, 0); 64];
                     let mut g = Gathered {
                         recv: r,
                         ..Default::default()
@@ -95,34 +103,22 @@ impl Solver<'_> {
                                 k: l.k,
                             });
                         } else {
-                            if l.deposit.depth() > 0 {
-                                g.deposits.push((l.deposit, contrib));
-                            } else {
-                                g.h += contrib;
+                            let d = l.deposit;
+                            for i in 0..d.points() {
+                                let c = &mut cells[d.path(i) as usize];
+                                c.0 += 1;
+                                c.1 += d.open(i) as u32;
                             }
+                            g.h += contrib;
                             g.k_sum += l.k as f64;
                             if se.kind == Kind::Cluster {
                                 g.h_cluster += contrib.element_sum();
                             }
                         }
                     }
-                    // Deposits are followed only as deep as the receiver's points give each cell
-                    // at least `DEPOSIT_POINTS_PER_CELL` of them; none deep: spread evenly.
-                    let pts: usize = g.deposits.iter().map(|d| d.0.points()).sum();
-                    let mut depth = 0;
-                    while depth < Deposit::LEVELS
-                        && pts >= DEPOSIT_POINTS_PER_CELL << (2 * (depth + 1))
-                    {
-                        depth += 1;
-                    }
-                    if depth == 0 {
-                        for (_, c) in g.deposits.drain(..) {
-                            g.h += c;
-                        }
-                    } else {
-                        for d in &mut g.deposits {
-                            d.0 = d.0.truncated(depth);
-                        }
+                    if re.kind == Kind::Surface && re.num_children > 0 {
+                        let h = std::mem::take(&mut g.h);
+                        g.h = shape(el, covers, r, &cells, h, &mut g.deposits);
                     }
                     g
                 })
@@ -146,5 +142,100 @@ impl Solver<'_> {
             }
         }
         self.note_peak();
+    }
+}
+
+/// Spreads irradiance `h` gathered by surface receiver `id` over its parts in proportion to
+/// their open area times how often its links' rays from them saw their sources (`cells`:
+/// per cell 3 levels down, samples and open samples), each part's share shrunk towards its
+/// parent's where it has few samples; appends one deposit per part and returns what stays
+/// even (all of it when there are too few samples).
+fn shape(
+    el: &Elements,
+    covers: &Covers,
+    id: u32,
+    cells: &Cells,
+    h: DVec3,
+    out: &mut Vec<(Deposit, DVec3)>,
+) -> DVec3 {
+    let (n, o) = cells
+        .iter()
+        .fold((0u64, 0u64), |a, c| (a.0 + c.0 as u64, a.1 + c.1 as u64));
+    let mut depth = 0;
+    while depth < Deposit::LEVELS && n as f64 >= SAMPLES_PER_PART * (4u64 << (2 * depth)) as f64 {
+        depth += 1;
+    }
+    if depth == 0 || o == 0 || h == DVec3::ZERO {
+        return h;
+    }
+    let mut sh = Shaper {
+        el,
+        covers,
+        cells,
+        depth,
+        h,
+        out,
+        even: DVec3::ZERO,
+    };
+    sh.part(id, 0, 0, 1.0, o as f64 / n as f64);
+    sh.even
+}
+
+/// Per cell 3 levels below a surface receiver ([`Deposit::LEVELS`]): its links' samples there
+/// and how many of them saw their source.
+type Cells = [(u32, u32); 64];
+
+/// The state of [`shape`]'s descent.
+struct Shaper<'a> {
+    el: &'a Elements,
+    covers: &'a Covers,
+    cells: &'a Cells,
+    depth: u32,
+    h: DVec3,
+    out: &'a mut Vec<(Deposit, DVec3)>,
+    even: DVec3,
+}
+
+impl Shaper<'_> {
+    /// Part `node` at `level` below the receiver (its path `prefix`) gets `frac` of the
+    /// power; `p_par` is its open share.
+    fn part(&mut self, node: u32, level: u32, prefix: u32, frac: f64, p_par: f64) {
+        let e = &self.el.elems[node as usize];
+        let mut w = [0.0f64; 4];
+        let mut p = [0.0f64; 4];
+        if level < self.depth && e.num_children == 4 {
+            let mask = (1u32 << (2 * (level + 1))) - 1;
+            for j in 0..4u32 {
+                let want = prefix | j << (2 * level);
+                let (nj, oj) = self
+                    .cells
+                    .iter()
+                    .enumerate()
+                    .filter(|(c, _)| *c as u32 & mask == want)
+                    .fold((0.0, 0.0), |a, (_, c)| (a.0 + c.0 as f64, a.1 + c.1 as f64));
+                p[j as usize] = (oj + SAMPLES_PER_PART * p_par) / (nj + SAMPLES_PER_PART);
+                w[j as usize] = open_area(self.el, self.covers, e.first_child + j) * p[j as usize];
+            }
+        }
+        let total: f64 = w.iter().sum();
+        if total <= 0.0 {
+            if level == 0 {
+                self.even += self.h * frac;
+            } else {
+                self.out
+                    .push((Deposit::single(prefix, level), self.h * frac));
+            }
+            return;
+        }
+        for j in 0..4u32 {
+            let f = frac * w[j as usize] / total;
+            self.part(
+                e.first_child + j,
+                level + 1,
+                prefix | j << (2 * level),
+                f,
+                p[j as usize],
+            );
+        }
     }
 }

@@ -189,8 +189,12 @@ fn push_rec(
     let (a, b) = deps.1.get(id as usize).copied().unwrap_or((0, 0));
     for &(d, c) in &deps.0[a as usize..b as usize] {
         out.gathered += open_here * c.element_sum();
-        let share = c / d.points() as f64;
-        carried.extend((0..d.points()).map(|i| (d.path(i), d.depth(), share)));
+        let share = c / d.open_points().max(1) as f64;
+        carried.extend(
+            (0..d.points())
+                .filter(|&i| d.open(i))
+                .map(|i| (d.path(i), d.depth(), share)),
+        );
     }
     carried.extend_from_slice(down.2);
     carried.retain(|&(_, levels, s)| {
@@ -262,7 +266,7 @@ type Carried = (u32, u32, DVec3);
 type Deposits<'a> = (&'a [(Deposit, DVec3)], &'a [(u32, u32)]);
 
 /// Open area of surface element `id` (its open share once push-pull has computed it).
-fn open_area(el: &Elements, covers: &Covers, id: u32) -> f64 {
+pub(super) fn open_area(el: &Elements, covers: &Covers, id: u32) -> f64 {
     let e = &el.elems[id as usize];
     let known = el.open[id as usize];
     e.area as f64
