@@ -234,10 +234,11 @@ fn weak_links_land_where_their_rays_see_the_source() {
     // 16 quads, 0.9 × 0.9 at z = 1) whose every link is far below ε, so its links stay on the
     // floor's two triangles; a bright lamp beside it (red) refines the floor to its minimum
     // area. Spread evenly, the dim light would reach the hidden half as much as the open one
-    // (a triangle 75% hidden would give its open part a quarter of its light); deposited
-    // where the rays saw the ceiling, the open half gets the brute-force value and the hidden
-    // half almost nothing (spread evenly: the open half 0.63 of brute force, the hidden half
-    // 0.58 of the open one). Midpoint subdivision puts a cell edge on x = 0.5.
+    // (a triangle 75% hidden would give its open part a quarter of its light); shaped by
+    // where the floor's links' rays saw their sources, the open half gets the brute-force
+    // value and the hidden half almost nothing (spread evenly: the open half 0.63 of brute
+    // force, the hidden half 0.58 of the open one). Midpoint subdivision puts a cell edge on
+    // x = 0.5.
     let g = 0.1f32;
     let mut mats = materials();
     mats.push(Material {
