@@ -4,6 +4,8 @@
 //! and ends with the uninterrupted run's results; `--jobs` lists one command per unit; `merge`
 //! combines directories.
 
+mod study_common;
+
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -298,38 +300,6 @@ fn key_set(v: &serde_json::Value) -> BTreeSet<String> {
         .collect()
 }
 
-/// `results.json` without what depends on the clock or the invocation: timings, run metadata,
-/// the invocations, and the findings (two of them compare build and ray-casting times).
-fn results_without_timings(dir: &Path) -> serde_json::Value {
-    fn strip(v: &mut serde_json::Value) {
-        const TIMING: &[&str] = &[
-            "meta",
-            "build_ms",
-            "query_ms",
-            "mrays_per_s",
-            "solve_s",
-            "seconds",
-            "volume_s",
-            "exact_s",
-            "wall_s",
-            "runs",
-            "findings",
-        ];
-        match v {
-            serde_json::Value::Object(m) => {
-                m.retain(|k, _| !TIMING.contains(&k.as_str()));
-                m.values_mut().for_each(strip);
-            }
-            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
-            _ => {}
-        }
-    }
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
-    strip(&mut v);
-    v
-}
-
 /// `sweep.csv` without its timing column.
 fn sweep_without_timings(dir: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
@@ -375,7 +345,7 @@ fn study_killed_midway_resumes_to_the_same_result() {
     assert_eq!(full_runs.len(), 1);
     assert_eq!(full_runs[0]["outcome"], "finished");
     assert_eq!(key_set(&full_runs[0]["computed"]), all_units);
-    let full_results = results_without_timings(&full_dir);
+    let full_results = study_common::results_without_timings(&full_dir);
     assert_eq!(full_results["solves"].as_array().unwrap().len(), 3);
 
     for (name, signal) in [("sigint", libc::SIGINT), ("sigkill", libc::SIGKILL)] {
@@ -462,7 +432,11 @@ fn study_killed_midway_resumes_to_the_same_result() {
         }
         assert_eq!(unit_keys(&dir), all_units, "{name}");
         // Same results as the uninterrupted run, timings aside, and the same images.
-        assert_eq!(results_without_timings(&dir), full_results, "{name}");
+        assert_eq!(
+            study_common::results_without_timings(&dir),
+            full_results,
+            "{name}"
+        );
         assert_eq!(
             sweep_without_timings(&dir),
             sweep_without_timings(&full_dir)

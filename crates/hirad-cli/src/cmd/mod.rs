@@ -10,6 +10,7 @@ pub mod render;
 pub mod scene;
 pub mod solve;
 pub mod study;
+pub mod study_slurm;
 pub mod validate;
 pub mod view;
 

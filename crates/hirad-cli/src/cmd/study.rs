@@ -1,5 +1,6 @@
 //! `hirad study SCENE ...`: the paper's experiments end to end (`experiments.md` §1–6), and
-//! `hirad study merge DIR...` to combine results computed on several machines.
+//! `hirad study merge DIR...` to combine results computed on several machines; `--slurm` writes
+//! (and `--submit` submits) the units as a Slurm job array (`study_slurm.rs`).
 
 use crate::progress::{overall_bar, Bars};
 use crate::Global;
@@ -86,6 +87,8 @@ pub struct Args {
     /// every unit].
     #[arg(long)]
     pub only: Vec<String>,
+    #[command(flatten)]
+    pub slurm: super::study_slurm::SlurmArgs,
 }
 
 #[derive(clap::Subcommand, Debug)]
@@ -206,6 +209,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         let into = into.clone().unwrap_or_else(|| dirs[0].clone());
         let n = run::merge(&into, dirs)?;
         eprintln!("merged {n} results into {}", into.display());
+        super::study_slurm::report_missing(&into);
         return report(&into, 0.0, g.quiet);
     }
     let scene = a.scene.clone().ok_or_else(|| {
@@ -220,6 +224,11 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let bars = Bars::in_multi(g.quiet, multi.clone());
     let t0 = std::time::Instant::now();
     let study = Study::new(cfg, &bars, &cancel)?;
+    // Units finished by Slurm tasks join the study; what is missing is reported.
+    super::study_slurm::collect(&study, g.quiet)?;
+    if a.slurm.slurm {
+        return super::study_slurm::write_and_submit(&a, &study, g.quiet);
+    }
     if a.jobs {
         // The ε series is fixed here (calibrating if needed) and passed to every job.
         let eps = study.eps()?;

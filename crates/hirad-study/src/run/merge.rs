@@ -5,10 +5,16 @@ use crate::store::Store;
 use hirad_core::{Error, Result};
 use std::path::PathBuf;
 
-/// Merge the stores of several study directories into `into` (files already there are kept).
+/// Merge the stores of several study directories into `into` (files already there are kept),
+/// each with its Slurm tasks' directories ([`super::slurm::task_dirs`]).
 pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
     let mut copied = 0;
+    let mut all = Vec::new();
     for d in dirs {
+        all.push(d.clone());
+        all.extend(super::slurm::task_dirs(d));
+    }
+    for d in &all {
         let src = Store::new(d);
         for prefix in [
             "clusters",
@@ -44,7 +50,7 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
 }
 
 fn copy_tree(from: &std::path::Path, to: &std::path::Path, exts: &[&str]) -> Result<()> {
-    for p in crate::store::walk_files(from, &["plots"]) {
+    for p in crate::store::walk_files(from, &["plots", "slurm"]) {
         if !p.extension().is_some_and(|x| exts.iter().any(|e| x == *e)) {
             continue;
         }

@@ -5,17 +5,19 @@
 //! `raybench/<strategy>` (§2), `reference/<viewpoint>` (§3), `solve/<strategy>/<eps>` (§4) and
 //! `volume/<strategy>` (§5). Every unit is written atomically when it completes, so a study that
 //! is stopped and started again skips finished units. [`plan()`] lists the units so that
-//! `hirad study --jobs` can print one command per unit; [`merge()`] merges output directories.
+//! `hirad study --jobs` can print one command per unit; [`merge()`] merges output directories;
+//! [`slurm`] runs the units as a Slurm job array.
 //!
 //! Files: `config` ([`StudyConfig`], viewpoints), `plan` (units and their keys), `calibrate`
-//! (the ε range of the sweep), `units` (computing each unit), `outputs` (tables, plots, report)
-//! and `merge`.
+//! (the ε range of the sweep), `units` (computing each unit), `outputs` (tables, plots, report),
+//! `merge` and `slurm`.
 
 mod calibrate;
 mod config;
 mod merge;
 mod outputs;
 mod plan;
+pub mod slurm;
 mod units;
 
 pub use calibrate::{pick_range, Calibration};
@@ -82,10 +84,11 @@ pub fn lock_dir(dir: &std::path::Path) -> Result<std::fs::File> {
 
 /// Remove the temporary files (`.hirad-*.tmp`, see [`hirad_core::io::write_atomic`]) that a killed
 /// invocation can leave below `dir`; returns how many. Only one study runs in a directory at a
-/// time, so none of them belongs to a live writer.
+/// time, so none of them belongs to a live writer; the Slurm tasks' own directories
+/// (`slurm/`) are left alone, as they may be running.
 pub fn remove_stale_temp(dir: &std::path::Path) -> Result<usize> {
     let mut n = 0;
-    for p in super::store::walk_files(dir, &[]) {
+    for p in super::store::walk_files(dir, &["slurm"]) {
         let name = p
             .file_name()
             .map(|n| n.to_string_lossy().to_string())
