@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # A single-node Slurm on this machine for `hirad study --slurm` (issue 25): Debian's slurm-wlm
 # and munge; munged, slurmctld and slurmd (2 CPUs, niced) with their configuration, state and
-# logs in $HIRAD_SLURM_DIR (default /tmp/hirad-slurm). Commands:
-#   all (default)  install, start, run the cornell study through Slurm and compare it with an
-#                  in-process run (cargo test -p hirad-cli --test slurm), stop
+# logs in $HIRAD_SLURM_DIR (default /tmp/hirad-slurm). With HIRAD_SLURM_ACCOUNTING=1 also
+# slurmdbd on a private MariaDB, so that `sacct` answers. Commands:
+#   all (default)  install, start (with accounting), run the cornell study through Slurm and
+#                  compare it with an in-process run (cargo test -p hirad-cli --test slurm), stop
 #   install        apt-get the packages when missing (root or sudo)
 #   start          start the daemons that are not running; prints `export SLURM_CONF=…`
 #   run            the test above against the running daemons
@@ -14,10 +15,13 @@ cd "$(dirname "$0")/.."
 D=${HIRAD_SLURM_DIR:-/tmp/hirad-slurm}
 export SLURM_CONF="$D/slurm.conf"
 SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+ACCT=${HIRAD_SLURM_ACCOUNTING:-0}
 
 install_pkgs() {
   local need=()
-  for p in slurm-wlm munge jq; do dpkg -s "$p" >/dev/null 2>&1 || need+=("$p"); done
+  local pkgs=(slurm-wlm munge)
+  [ "$ACCT" = 1 ] && pkgs+=(slurmdbd mariadb-server)
+  for p in "${pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || need+=("$p"); done
   if [ ${#need[@]} -gt 0 ]; then
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}"
@@ -43,19 +47,56 @@ SlurmctldLogFile=$D/log/slurmctld.log
 SlurmdLogFile=$D/log/slurmd.log
 ProctrackType=proctrack/pgid
 TaskPlugin=task/none
-JobAcctGatherType=jobacct_gather/none
 MpiDefault=none
 ReturnToService=2
 SchedulerType=sched/backfill
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 MinJobAge=600
+$(if [ "$ACCT" = 1 ]; then
+  printf '%s\n' AccountingStorageType=accounting_storage/slurmdbd AccountingStorageHost=127.0.0.1 \
+    JobAcctGatherType=jobacct_gather/linux
+else
+  echo JobAcctGatherType=jobacct_gather/none
+fi)
 NodeName=$host NodeAddr=127.0.0.1 CPUs=2 RealMemory=$mem State=UNKNOWN
 PartitionName=local Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
 }
 
 alive() { [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
+
+# slurmdbd on a MariaDB of its own (data in $D/db, 127.0.0.1:3307).
+accounting() {
+  if ! alive "$D/mariadbd.pid"; then
+    [ -d "$D/db/mysql" ] || mariadb-install-db --datadir="$D/db" --user=root \
+      --auth-root-authentication-method=socket >"$D/log/mariadb-install.log" 2>&1
+    nice -n 10 mariadbd --datadir="$D/db" --socket="$D/db.sock" --port=3307 \
+      --bind-address=127.0.0.1 --user=root --pid-file="$D/mariadbd.pid" \
+      --log-error="$D/log/mariadb.log" &
+    for _ in $(seq 60); do mariadb -S "$D/db.sock" -e 'select 1' >/dev/null 2>&1 && break; sleep 0.5; done
+    mariadb -S "$D/db.sock" -e "CREATE USER IF NOT EXISTS 'slurm'@'127.0.0.1' IDENTIFIED BY 'hirad-local';
+      GRANT ALL ON slurm_acct_db.* TO 'slurm'@'127.0.0.1';"
+  fi
+  cat > "$D/slurmdbd.conf" <<EOF
+AuthType=auth/munge
+DbdHost=localhost
+DbdAddr=127.0.0.1
+SlurmUser=root
+PidFile=$D/slurmdbd.pid
+LogFile=$D/log/slurmdbd.log
+StorageType=accounting_storage/mysql
+StorageHost=127.0.0.1
+StoragePort=3307
+StorageUser=slurm
+StoragePass=hirad-local
+StorageLoc=slurm_acct_db
+EOF
+  chmod 600 "$D/slurmdbd.conf"
+  alive "$D/slurmdbd.pid" || nice -n 10 slurmdbd
+  for _ in $(seq 60); do sacctmgr -n list cluster >/dev/null 2>&1 && break; sleep 0.5; done
+  sacctmgr -i add cluster hirad-local >/dev/null 2>&1 || true
+}
 
 start() {
   mkdir -p "$D"
@@ -66,6 +107,7 @@ start() {
     $SUDO runuser -u munge -- /usr/sbin/munged
     cp /run/munge/munged.pid "$D/munged.pid"
   fi
+  if [ "$ACCT" = 1 ]; then accounting; fi
   alive "$D/slurmctld.pid" || $SUDO nice -n 10 slurmctld
   alive "$D/slurmd.pid" || $SUDO nice -n 19 slurmd
   for _ in $(seq 60); do
@@ -83,7 +125,7 @@ start() {
 }
 
 stop() {
-  for d in slurmd slurmctld munged; do
+  for d in slurmd slurmctld slurmdbd mariadbd munged; do
     if alive "$D/$d.pid"; then
       local pid
       pid=$(cat "$D/$d.pid")
@@ -106,6 +148,7 @@ case "$cmd" in
   run) run ;;
   all)
     t0=$(date +%s)
+    ACCT=${HIRAD_SLURM_ACCOUNTING:-1}
     install_pkgs
     trap stop EXIT
     start

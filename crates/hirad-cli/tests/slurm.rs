@@ -97,8 +97,8 @@ fn tasks_of_the_script_compute_the_study_and_a_rerun_resubmits_only_the_failed()
     let bad_i = keys.iter().position(|k| k == bad).unwrap();
     std::fs::create_dir_all(task_dir(&out, bad)).unwrap();
     std::fs::write(task_dir(&out, bad).join("solve"), "in the way").unwrap();
-    for i in 0..keys.len() {
-        assert_eq!(run_task(&out, i), i != bad_i, "task {i} ({})", keys[i]);
+    for (i, key) in keys.iter().enumerate() {
+        assert_eq!(run_task(&out, i), i != bad_i, "task {i} ({key})");
     }
     assert!(!run_task(&out, keys.len()), "a task past the last unit");
 
@@ -197,13 +197,21 @@ fn study_through_the_local_slurm_equals_the_in_process_study() {
         std::thread::sleep(Duration::from_millis(500));
     }
     let wall = t0.elapsed().as_secs_f64();
-    let acct = text(Command::new("sacct").args([
-        "-j",
-        &ids.join(","),
-        "-X",
-        "-o",
-        "JobID%14,JobName%14,Partition,State,Elapsed,ExitCode",
-    ]));
+    // Accounting (when slurmdbd runs) records the last tasks a moment after they leave the queue.
+    let mut acct = String::new();
+    for _ in 0..20 {
+        acct = text(Command::new("sacct").args([
+            "-j",
+            &ids.join(","),
+            "-X",
+            "-o",
+            "JobID%14,JobName%14,Partition,State,Elapsed,ExitCode",
+        ]));
+        if acct.matches("COMPLETED").count() >= 12 || acct.contains("disabled") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(250));
+    }
     println!("--- sacct\n{acct}");
 
     let o = Command::new(env!("CARGO_BIN_EXE_hirad"))

@@ -4,8 +4,9 @@
 //! [`Study::status`]).
 //!
 //! Layout below the study directory `DIR` (on a filesystem shared by the nodes):
-//! `slurm/study.sbatch` (the script), `slurm/units.txt` (one key per line; array task `i` runs
-//! line `i + 1`, references first), `slurm/logs/<job>_<task>.out`, and one study directory per
+//! `slurm/study.sbatch` (the script; array task `i` runs its `i`-th unit, references first;
+//! the list is in the script, so that sbatch's copy of it holds when the script is rewritten),
+//! `slurm/units.txt` (the same list), `slurm/logs/<job>_<task>.out`, and one study directory per
 //! task, `slurm/units/<key with / as __>` ([`task_dir`]), as a study directory holds one
 //! process at a time. The references are a first submission of the script; the other units
 //! a second one that depends on it (`afterok`) and copies the finished references into its
@@ -99,15 +100,14 @@ pub fn submissions(job: &SlurmJob) -> (Option<Vec<String>>, Option<Vec<String>>)
     (refs, rest)
 }
 
-/// The sbatch script of a study's units (written to [`script_path`]; its units to
-/// `slurm/units.txt`, one key per line).
+/// The sbatch script of a study's units (written to [`script_path`]).
 pub fn script(job: &SlurmJob, opts: &SlurmOptions) -> String {
     let q = |p: &Path| sh_quote(&p.display().to_string());
     let mut s = String::from("#!/bin/bash\n");
     let _ = writeln!(
         s,
         "# hirad study as a Slurm job array, written by `hirad study … --slurm`: {} units,\n\
-         # {} of them references. Array task i runs the unit on line i+1 of units.txt.\n\
+         # {} of them references. Array task i runs units[i].\n\
          # Submit (what --submit does):",
         job.units.len(),
         job.references
@@ -145,11 +145,15 @@ pub fn script(job: &SlurmJob, opts: &SlurmOptions) -> String {
             let _ = writeln!(s, "#SBATCH --{flag}={v}");
         }
     }
+    let _ = writeln!(s, "set -euo pipefail\nunits=(");
+    for u in &job.units {
+        let _ = writeln!(s, "  {}", sh_quote(u));
+    }
     let _ = writeln!(
         s,
-        "set -euo pipefail\n\
+        ")\n\
          out={}\n\
-         key=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" \"$out/slurm/units.txt\")\n\
+         key=${{units[$SLURM_ARRAY_TASK_ID]:-}}\n\
          if [ -z \"$key\" ]; then echo \"no unit for array task $SLURM_ARRAY_TASK_ID\" >&2; exit 2; fi\n\
          task=\"$out/slurm/units/${{key//\\//__}}\"\n\
          mkdir -p \"$task\"\n\
@@ -383,8 +387,6 @@ mod tests {
         j.exe = exe;
         j.out = out.clone();
         j.workdir = d.path().to_path_buf();
-        std::fs::create_dir_all(out.join("slurm")).unwrap();
-        std::fs::write(out.join("slurm/units.txt"), j.units.join("\n") + "\n").unwrap();
         // The reference task's result, which the solve's task must copy in.
         let rdir = task_dir(&out, "reference/front").join("reference");
         std::fs::create_dir_all(&rdir).unwrap();
