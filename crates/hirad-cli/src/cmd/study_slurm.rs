@@ -52,9 +52,15 @@ pub fn collect(study: &Study, quiet: bool) -> anyhow::Result<bool> {
 /// After `hirad study merge`: the units of the study in `dir` that are still missing (best
 /// effort: skipped with a note when its scene cannot be loaded from here).
 pub fn report_missing(dir: &Path) {
-    let Some(cfg) = Store::new(dir).get::<StudyConfig>("config") else {
+    let store = Store::new(dir);
+    let Some(cfg) = store.get::<StudyConfig>("config") else {
         return;
     };
+    // Its ε series would need probe solves: not for a merge.
+    if cfg.eps_list.is_empty() && cfg.tolerances > 0 && cfg.eps_auto && !store.has("calibrate") {
+        eprintln!("note: not checking for missing units: the study's ε range is not calibrated");
+        return;
+    }
     let progress = hirad::progress::NoProgress;
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let r = Study::new(cfg, &progress, &cancel).and_then(|s| Ok(s.status(&s.plan()?)));

@@ -372,6 +372,67 @@ mod tests {
         );
     }
 
+    #[test]
+    fn status_tells_failed_from_unfinished_and_not_started() {
+        let d = tempfile::tempdir().unwrap();
+        let cfg = super::super::StudyConfig {
+            scene: "cornell".into(),
+            strategies: vec![hirad_accel::cluster::Strategy::Kdt],
+            tolerances: 0,
+            ray_pairs: 2000,
+            out: d.path().join("s"),
+            ..Default::default()
+        };
+        let cancel = std::sync::atomic::AtomicBool::new(false);
+        let study = Study::new(cfg, &hirad_core::progress::NoProgress, &cancel).unwrap();
+        let jobs = study.plan().unwrap();
+        let keys: Vec<String> = jobs.iter().map(|j| j.key()).collect();
+        assert_eq!(keys, ["clusters/kdt", "raybench/kdt"]);
+        let st = study.status(&jobs);
+        assert_eq!(st.not_started, keys);
+        // A task that started (killed at its time limit, or still running) ...
+        let t = task_dir(&study.cfg.out, "clusters/kdt");
+        std::fs::create_dir_all(&t).unwrap();
+        std::fs::write(t.join("slurm-task"), "5_0\n").unwrap();
+        let st = study.status(&jobs);
+        let log = study.cfg.out.join("slurm/logs/5_0.out");
+        assert_eq!(
+            st.unfinished,
+            vec![("clusters/kdt".to_string(), Some(log.clone()))]
+        );
+        assert_eq!(st.not_started, ["raybench/kdt"]);
+        // ... that recorded a failure.
+        let rec = RunRecord {
+            outcome: "failed: disk full".into(),
+            ..Default::default()
+        };
+        Store::new(&t).put("runs/1-1", &rec).unwrap();
+        let st = study.status(&jobs);
+        assert_eq!(
+            st.failed,
+            vec![("clusters/kdt".into(), "failed: disk full".into(), Some(log))]
+        );
+        assert!(st
+            .summary()
+            .contains("0 of 2 units done; 1 failed, 0 started without a result, 1 not started"));
+        // Collected once done: the unit's record in the task's directory joins the study.
+        let mut only = study.cfg.clone();
+        only.out = t.clone();
+        only.only = vec!["clusters/kdt".into()];
+        drop(study);
+        let task = Study::new(only, &hirad_core::progress::NoProgress, &cancel).unwrap();
+        task.run_all(&mut |_, _, _| {}).unwrap();
+        drop(task);
+        let cfg = Store::new(d.path().join("s"))
+            .get::<super::super::StudyConfig>("config")
+            .unwrap();
+        let study = Study::new(cfg, &hirad_core::progress::NoProgress, &cancel).unwrap();
+        assert!(study.collect_tasks().unwrap() > 0);
+        let st = study.status(&jobs);
+        assert_eq!(st.done, ["clusters/kdt"]);
+        assert_eq!(st.missing(), ["raybench/kdt"]);
+    }
+
     /// The generated script is valid bash and maps array tasks to units and directories as
     /// [`task_dir`] does (run with a stub `hirad` that prints its arguments).
     #[cfg(unix)]
