@@ -94,6 +94,20 @@ impl Covers {
         shut: ShutMasks::EMPTY,
     };
 
+    /// Bytes of the overlaps, their grids and the shut masks.
+    pub fn memory_bytes(&self) -> usize {
+        (self.offsets.capacity()
+            + self.ids.capacity()
+            + self.grid_of.capacity()
+            + self.items.capacity())
+            * 4
+            + self.shapes.capacity() * std::mem::size_of::<[Vec2; 3]>()
+            + self.sides.capacity() * std::mem::size_of::<Vec3>()
+            + self.axis.capacity()
+            + self.grids.capacity() * std::mem::size_of::<CoverGrid>()
+            + self.shut.memory_bytes()
+    }
+
     /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`. One-sided
     /// triangles overlap only when they face the same way (back-to-back faces of a thin board
     /// each receive from their own side); two-sided ones always do.

@@ -63,6 +63,12 @@ impl ShutMasks {
         frame_of: Vec::new(),
     };
 
+    /// Bytes of the masks' arrays.
+    pub fn memory_bytes(&self) -> usize {
+        (self.offsets.capacity() + self.codes.capacity() + self.frame_of.capacity()) * 4
+            + self.frames.capacity() * std::mem::size_of::<[Vec3; 3]>()
+    }
+
     /// Masks of every triangle of a one-sided `scene` (none when `two_sided`).
     pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> ShutMasks {
         let n = scene.num_triangles();

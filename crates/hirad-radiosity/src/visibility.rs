@@ -46,6 +46,13 @@ impl<'a> Visibility<'a> {
         })
     }
 
+    /// Bytes of the ray layout, the subtree ranks and the volume data.
+    pub fn memory_bytes(&self) -> usize {
+        self.caster.memory_bytes()
+            + self.order.capacity() * 8
+            + self.volume.as_ref().map_or(0, |v| v.memory_bytes())
+    }
+
     /// The mode in use.
     pub fn mode(&self) -> VisibilityMode {
         self.mode

@@ -205,6 +205,25 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Bytes of the scene's arrays (positions, triangles, per-triangle data, names).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.positions.capacity() * size_of::<Vec3>()
+            + self.triangles.capacity() * size_of::<[u32; 3]>()
+            + (self.tri_material.capacity() + self.tri_object.capacity() + self.areas.capacity())
+                * 4
+            + self.normals.capacity() * size_of::<Vec3>()
+            + self.objects.capacity() * size_of::<String>()
+            + self.objects.iter().map(|o| o.capacity()).sum::<usize>()
+            + self.materials.capacity() * size_of::<Material>()
+            + self
+                .materials
+                .iter()
+                .map(|m| m.name.capacity())
+                .sum::<usize>()
+            + self.cameras.capacity() * size_of::<Camera>()
+    }
+
     /// Validate raw data and build the scene (see the module docs for the rules).
     pub fn from_raw(raw: RawScene, opts: &SceneOptions) -> Result<Scene> {
         let file = raw

@@ -112,6 +112,13 @@ fn box6(b: &Aabb) -> [f32; 6] {
 }
 
 impl<'a> VolumeCaster<'a> {
+    /// Bytes of the per-node arrays.
+    pub fn memory_bytes(&self) -> usize {
+        (self.kappa.capacity() + self.size.capacity() + self.pre.capacity() + self.end.capacity())
+            * 4
+            + (self.padded.capacity() + self.boxes.capacity()) * 24
+    }
+
     /// Precompute extinction coefficients and padded boxes of every cluster.
     pub fn new(scene: &'a Scene, tree: &'a ClusterTree) -> Self {
         let n = tree.nodes.len();
