@@ -63,11 +63,12 @@ impl Error {
         }
     }
 
-    /// True for errors caused by the user's input files or arguments (CLI exit code 2).
+    /// True for errors caused by the user's input files or arguments, a budget too small
+    /// for the scene included (CLI exit code 2).
     pub fn is_input(&self) -> bool {
         matches!(
             self,
-            Error::Io { .. } | Error::Input { .. } | Error::Config(_)
+            Error::Io { .. } | Error::Input { .. } | Error::Config(_) | Error::Budget(_)
         )
     }
 }

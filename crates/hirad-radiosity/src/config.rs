@@ -101,8 +101,11 @@ pub struct SolverConfig {
     pub max_iters: u32,
     /// Stop when the relative change of total power falls below this.
     pub tol_converge: f64,
-    /// Memory budget for elements and links in bytes (`None`: unlimited).
+    /// Memory budget of the whole process in bytes (`None`: unlimited; see
+    /// [`crate::memory`]).
     pub max_memory: Option<u64>,
+    /// Bytes the caller holds beside the solve (images) that the budget must leave free.
+    pub reserved_memory: u64,
     /// Rays per surface element for sky irradiance (scenes with a sky).
     pub sky_rays: u32,
     /// Seed of every random choice (combined with element and link ids).
@@ -131,6 +134,7 @@ impl Default for SolverConfig {
             max_iters: 100,
             tol_converge: 1e-4,
             max_memory: None,
+            reserved_memory: 0,
             sky_rays: 16,
             seed: 1,
             anisotropy_refine: true,

@@ -12,7 +12,8 @@
 //! - [`shut`]: the parts of triangles inside closed solids;
 //! - [`solver`]: refine / gather / push-pull until convergence;
 //! - [`config`]: [`SolverConfig`] and presets; [`stats`]: [`SolveStats`];
-//! - [`output`]: per-vertex radiosity meshes and result files.
+//! - [`output`]: per-vertex radiosity meshes and result files;
+//! - [`memory`]: the whole-process memory budget and its estimate.
 //!
 //! Entry point: [`solve`].
 
@@ -21,6 +22,7 @@ pub mod config;
 pub mod element;
 pub mod formfactor;
 pub mod link;
+pub mod memory;
 pub mod oracle;
 pub mod output;
 pub mod overlap;

@@ -224,6 +224,9 @@ impl LinkSet {
             }
         }
         links.sort_unstable_by_key(|l| l.recv);
+        // Held for the rest of the solve: no spare capacity (the memory budget counts it).
+        links.shrink_to_fit();
+        kept.shrink_to_fit();
         let mut groups = Vec::new();
         let mut s = 0usize;
         while s < links.len() {
@@ -235,6 +238,7 @@ impl LinkSet {
             groups.push((r, s as u32, e as u32));
             s = e;
         }
+        groups.shrink_to_fit();
         LinkSet {
             links,
             groups,

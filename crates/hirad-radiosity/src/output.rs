@@ -186,7 +186,10 @@ pub fn write_outputs(sol: &Solution, scene: &Scene, dir: &Path, flat: bool) -> R
     };
     write_colored_mesh(&files.glb, &mesh)?;
     write_colored_mesh(&files.ply, &mesh)?;
-    hirad_core::io::write_json_atomic(&files.stats, &sol.stats)?;
+    // The process peak so far includes the mesh files.
+    let mut stats = sol.stats.clone();
+    stats.memory.vm_hwm_bytes = crate::stats::vm_hwm_bytes().or(stats.memory.vm_hwm_bytes);
+    hirad_core::io::write_json_atomic(&files.stats, &stats)?;
     Ok(files)
 }
 

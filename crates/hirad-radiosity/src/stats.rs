@@ -37,15 +37,22 @@ pub struct PhaseTimes {
 /// Memory accounting.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MemoryStats {
-    /// Peak of our own counted bytes (elements + links + gather buffers).
+    /// Peak of the counted bytes: the fixed part and the solver's arrays (elements, links,
+    /// gather and push-pull buffers; [`crate::memory`]).
     pub peak_counted_bytes: u64,
+    /// The fixed part of the count: scene, cluster tree, ray layout, overlaps and shut masks,
+    /// process, the caller's images.
+    #[serde(default)]
+    pub fixed_bytes: u64,
     /// Bytes of the element arena (and per-element gather sums) at the end.
     pub element_bytes: u64,
     /// Bytes of the final link set.
     pub link_bytes: u64,
-    /// Process peak resident set (VmHWM of /proc/self/status), when available.
+    /// Process peak resident set (VmHWM of /proc/self/status) when the solve ended (the
+    /// `stats.json` of `hirad solve` takes it after the mesh files are written), when
+    /// available.
     pub vm_hwm_bytes: Option<u64>,
-    /// The `--max-memory` budget.
+    /// The `--max-memory` budget of the whole process.
     pub budget_bytes: Option<u64>,
     /// True when refinement stopped early because of the budget (solution coarser than ε
     /// asks for).

@@ -77,6 +77,23 @@ impl Solver<'_> {
         self.dep_ranges.resize(self.el.len(), (0, 0));
         let n_groups = self.set.groups.len();
         let covers = &self.covers;
+        // Exact capacities (what the memory budget projects): an entry per link into a
+        // cluster, and for a subdivided surface the parts its light is shaped over.
+        let (mut n_entries, mut n_deposits) = (0usize, 0usize);
+        for &(r, a, b) in &self.set.groups {
+            let re = &self.el.elems[r as usize];
+            if re.kind == Kind::Cluster {
+                n_entries += (b - a) as usize;
+            } else if re.num_children > 0 {
+                let samples: usize = self.set.links[a as usize..b as usize]
+                    .iter()
+                    .map(|l| l.deposit.points())
+                    .sum();
+                n_deposits += 1 << (2 * shape_depth(samples as u64));
+            }
+        }
+        self.entries.reserve_exact(n_entries);
+        self.deposits.reserve_exact(n_deposits);
         for start in (0..n_groups).step_by(GATHER_CHUNK) {
             let el = &self.el;
             let set = &self.set;
@@ -161,10 +178,7 @@ fn shape(
     let (n, o) = cells
         .iter()
         .fold((0u64, 0u64), |a, c| (a.0 + c.0 as u64, a.1 + c.1 as u64));
-    let mut depth = 0;
-    while depth < Deposit::LEVELS && n as f64 >= SAMPLES_PER_PART * (4u64 << (2 * depth)) as f64 {
-        depth += 1;
-    }
+    let depth = shape_depth(n);
     if depth == 0 || o == 0 || h == DVec3::ZERO {
         return h;
     }
@@ -179,6 +193,19 @@ fn shape(
     };
     sh.part(id, 0, 0, 1.0, o as f64 / n as f64);
     sh.even
+}
+
+/// Levels below a receiver that its links' `samples` shape ([`SAMPLES_PER_PART`] per part on
+/// average, at most [`Deposit::LEVELS`]); its light goes to at most `4^depth` parts, and
+/// `4^depth ≤ samples / 4`.
+pub(super) fn shape_depth(samples: u64) -> u32 {
+    let mut depth = 0;
+    while depth < Deposit::LEVELS
+        && samples as f64 >= SAMPLES_PER_PART * (4u64 << (2 * depth)) as f64
+    {
+        depth += 1;
+    }
+    depth
 }
 
 /// Per cell 3 levels below a surface receiver ([`Deposit::LEVELS`]): its links' samples there

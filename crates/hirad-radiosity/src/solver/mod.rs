@@ -106,7 +106,33 @@ pub fn solve_cancellable(
     }
     let t_start = Instant::now();
     let vis = Visibility::new(scene, tree, cfg.visibility, cfg.vol_ratio)?;
+    // The budget's fixed part: checked before the overlaps are searched, and again with them
+    // and the element arena before refinement.
+    let fixed = (scene.memory_bytes() + tree.memory_bytes() + vis.memory_bytes()) as u64
+        + crate::memory::process_bytes(rayon::current_num_threads())
+        + cfg.reserved_memory;
+    if let Some(b) = cfg.max_memory {
+        if fixed > b {
+            return Err(crate::memory::too_small(
+                b,
+                fixed,
+                "scene, cluster tree, ray layout, process and images",
+            ));
+        }
+    }
     let mut s = Solver::new(scene, tree, cfg, &vis);
+    s.fixed = fixed + s.covers.memory_bytes() as u64;
+    tracing::info!(
+        "memory: fixed {} B (scene {}, cluster tree {}, visibility {}, overlaps {}), elements {}",
+        s.fixed,
+        scene.memory_bytes(),
+        tree.memory_bytes(),
+        vis.memory_bytes(),
+        s.covers.memory_bytes(),
+        s.el.memory_bytes()
+    );
+    s.check_start()?;
+    s.note_peak();
     s.stats.time.setup = t_start.elapsed().as_secs_f64();
     s.run(progress, cancel, t_start)?;
     s.finish(t_start)
@@ -127,6 +153,14 @@ struct Solver<'a> {
     /// Minimum area of a surface receiver split at a shadow boundary.
     shadow_min_area: f64,
     budget_hit: bool,
+    /// Bytes of the budget's fixed part ([`crate::memory`]).
+    fixed: u64,
+    /// Links kept by the current refinement, and the bytes of gather entries and deposits
+    /// they will need (the ratio the budget's projection uses).
+    kept_links: usize,
+    kept_gather_bytes: usize,
+    /// Samples kept by the current refinement.
+    kept_samples: usize,
     peak: u64,
     rays: u64,
     /// Per cluster: range into `entries`.
@@ -239,6 +273,10 @@ impl<'a> Solver<'a> {
             min_area,
             shadow_min_area: min_area / 4f64.powi(cfg.shadow_levels as i32),
             budget_hit: false,
+            fixed: 0,
+            kept_links: 0,
+            kept_gather_bytes: 0,
+            kept_samples: 0,
             peak: 0,
             rays: 0,
             cl_ranges: vec![(0, 0); nc],
@@ -415,6 +453,7 @@ impl Solver<'_> {
         };
         st.rays = self.rays;
         st.memory.peak_counted_bytes = self.peak;
+        st.memory.fixed_bytes = self.fixed;
         st.memory.element_bytes = (self.el.memory_bytes() + self.h_cluster.capacity() * 8) as u64;
         st.memory.link_bytes = self.set.memory_bytes() as u64;
         st.memory.vm_hwm_bytes = stats::vm_hwm_bytes();

@@ -11,11 +11,13 @@
 //! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
 //! samples land on.
 
+use super::budget::Growth;
+use super::gather::Entry;
 use super::Solver;
 use crate::config::Oracle;
-use crate::element::{Elements, Kind};
+use crate::element::Kind;
 use crate::formfactor::KernelCtx;
-use crate::link::{Link, LinkSet, Sample, NO_SAMPLES};
+use crate::link::{Deposit, Link, LinkSet, Sample, NO_SAMPLES};
 use crate::oracle::{self, Action};
 use glam::DVec3;
 use hirad_core::{Error, Result};
@@ -27,7 +29,7 @@ const REFINE_CHUNK: usize = 1 << 18;
 
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
 /// cast, and the samples of a kept link from a directional cluster.
-type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
+pub(super) type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
 
 impl Solver<'_> {
     /// One refinement sweep over every link (the root self-link on the first iteration).
@@ -42,6 +44,9 @@ impl Solver<'_> {
         // The gather rebuilds its hand-outs and deposits from the refined links.
         self.entries = Vec::new();
         self.deposits = Vec::new();
+        self.kept_links = 0;
+        self.kept_gather_bytes = 0;
+        self.kept_samples = 0;
         let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
         while !frontier.is_empty() {
             // One pass over the frontier, a chunk at a time: the decisions of a chunk are all
@@ -123,9 +128,14 @@ impl Solver<'_> {
             });
             to_split.sort_unstable();
             to_split.dedup();
-            let projected = self
-                .memory_now(done.len() + rest + chunk.len() + next.len() + new_links)
-                + (to_split.len() * 4 * (Elements::BYTES_PER_ELEMENT + 8)) as u64;
+            let projected = self.projected(&Growth {
+                links: done.len() + rest + chunk.len() + next.len() + new_links,
+                elements: to_split.len() * 4,
+                samples: samples.len(),
+                pending: rest + chunk.len() + next.len() + new_links,
+                // A later pass decides the first chunk of all the links.
+                chunk: REFINE_CHUNK.min(done.len() + rest + chunk.len() + next.len() + new_links),
+            });
             for (_, _, r, _) in &decided {
                 self.rays += r;
             }
@@ -161,7 +171,17 @@ impl Solver<'_> {
             for (a, mut l, _, m) in decided {
                 match a {
                     Action::Keep => {
+                        self.kept_links += 1;
+                        if self.el.elems[l.recv as usize].kind == Kind::Cluster {
+                            self.kept_gather_bytes += std::mem::size_of::<Entry>();
+                        } else {
+                            // A shaped receiver has at most one part per 4 of its links'
+                            // samples (`gather::shape_depth`).
+                            self.kept_gather_bytes +=
+                                std::mem::size_of::<(Deposit, DVec3)>() * l.deposit.points() / 4;
+                        }
                         if let Some(m) = m {
+                            self.kept_samples += m.len();
                             l.samples = samples.len() as u32;
                             samples.extend_from_slice(&m);
                         }
@@ -188,14 +208,14 @@ impl Solver<'_> {
                     }
                 }
             }
-            // The peak counts the links held now: decided, kept, to come and new.
-            self.links = std::mem::take(done);
-            let held = rest + chunk.len() + next.capacity();
-            let m = self.memory_now(held)
+            // The peak counts the links held now: decided, kept, to come and new, by length
+            // (the capacity reserved ahead of them is not touched, so not resident).
+            let held = done.len() + rest + chunk.len() + next.len();
+            let m = self.fixed
+                + self.memory_now(held)
                 + (chunk.len() * std::mem::size_of::<Decided>()
-                    + samples.capacity() * std::mem::size_of::<Sample>()) as u64;
+                    + samples.len() * std::mem::size_of::<Sample>()) as u64;
             self.peak = self.peak.max(m);
-            *done = std::mem::take(&mut self.links);
             return Ok(());
         }
     }
