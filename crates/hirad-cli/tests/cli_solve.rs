@@ -212,3 +212,48 @@ fn every_option_shows_its_default() {
         }
     }
 }
+
+/// A `--max-memory` below what the scene needs before refinement is an exit-2 error naming the
+/// size needed, before any work (no output directory); that size lets the solve run, and its
+/// counted peak stays within it.
+#[test]
+fn too_small_a_memory_budget_exits_2_naming_the_size() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s");
+    let o = hirad()
+        .args([
+            "-q",
+            "solve",
+            "office",
+            "--preset",
+            "fast",
+            "--max-memory",
+            "10MB",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(!out.exists());
+    // "... is below the N MB that the scene needs ...; give at least M MB"
+    let mb = |after: &str| -> u64 {
+        let i = err
+            .find(after)
+            .unwrap_or_else(|| panic!("no '{after}' in {err}"))
+            + after.len();
+        err[i..].split(' ').next().unwrap().parse().unwrap()
+    };
+    let (need, give) = (mb("is below the "), mb("give at least "));
+    assert!(need > 10 && give >= need, "{err}");
+    ok(hirad()
+        .args(["-q", "solve", "office", "--preset", "fast", "--max-memory"])
+        .arg(format!("{give}MB"))
+        .arg("--out")
+        .arg(&out));
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("stats.json")).unwrap()).unwrap();
+    let peak = st["memory"]["peak_counted_bytes"].as_u64().unwrap();
+    assert!(peak <= give * 1_000_000, "{peak} > {give} MB");
+}

@@ -1,6 +1,8 @@
-//! `hirad info SCENE`: counts, area, bounding box, materials, emitters and load time.
+//! `hirad info SCENE`: counts, area, bounding box, materials, emitters, load time and the
+//! estimated memory of a default solve (`radiosity::memory::estimate`).
 
 use crate::Global;
+use hirad::radiosity::memory::{self, mb};
 use hirad::scene::{SceneOptions, UpAxis};
 
 /// Scene-loading options shared by subcommands that load a scene (flatten into their `Args`).
@@ -64,8 +66,18 @@ pub struct Args {
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let scene = super::load_scene(&args.scene, &args.load.options())?;
     let s = scene.summary();
+    // A default solve, its image from the default camera included.
+    let cfg = hirad::radiosity::SolverConfig {
+        two_sided: scene.two_sided,
+        ..Default::default()
+    };
+    let cam = scene.default_camera();
+    let image = cam.width as u64 * cam.height as u64 * 64;
+    let mem = memory::estimate(&scene, &cfg, rayon::current_num_threads(), image);
     if g.json {
-        return super::print_json(&s);
+        let mut v = serde_json::to_value(&s)?;
+        v["memory_estimate"] = serde_json::to_value(&mem)?;
+        return super::print_json(&v);
     }
     let rows: Vec<(&str, String)> = vec![
         ("scene", s.name.clone()),
@@ -157,6 +169,22 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             },
         ),
         ("load time", format!("{:.3} s", s.load_seconds)),
+        (
+            "memory (estimate)",
+            format!(
+                "~{} for a default solve: {} before refinement (scene {}, cluster tree, ray \
+                 layout, overlaps ~{}, process {}, image {}) + elements and links ~{} ({} B \
+                 per triangle side, measured; --max-memory bounds it)",
+                mb(mem.total),
+                mb(mem.fixed),
+                mb(mem.scene),
+                mb(mem.tree + mem.layout + mem.covers),
+                mb(mem.process),
+                mb(mem.reserved),
+                mb(mem.solve),
+                memory::SOLVE_PER_ROOT
+            ),
+        ),
     ];
     for (k, v) in rows {
         println!("{k:<20} {v}");

@@ -9,7 +9,8 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::{NoProgress, Progress};
 use hirad::radiosity::config::parse_bytes;
 use hirad::radiosity::{
-    output, solve_cancellable, ClusterEmission, Oracle, Reception, SolverConfig, VisibilityMode,
+    memory, output, solve_cancellable, ClusterEmission, Oracle, Reception, SolverConfig,
+    VisibilityMode,
 };
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -68,8 +69,9 @@ pub struct Args {
     /// Convergence threshold on the relative change of total power [default: 1e-4].
     #[arg(long)]
     pub tol_converge: Option<f64>,
-    /// Memory budget for elements and links, e.g. 4GB; refinement stops when reached [default:
-    /// none].
+    /// Memory budget of the whole process, e.g. 4GB: the scene, cluster tree and images are
+    /// counted first (a budget below them is an error before any work), refinement stops
+    /// before the rest would pass it [default: none; `hirad info` estimates a solve's need].
     #[arg(long)]
     pub max_memory: Option<String>,
     /// Cluster reception: oriented or isotropic [default: oriented].
@@ -169,6 +171,20 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let scene = super::load_scene(&args.scene, &opts)?;
     // A file whose surfaces all have back faces (MGF `sides 2`) is solved two-sided.
     cfg.two_sided |= scene.two_sided;
+    let view = args.camera.apply(hirad::render::CameraView::from_camera(
+        &scene.default_camera(),
+    ))?;
+    if !args.bench {
+        cfg.reserved_memory = image_bytes(&view);
+    }
+    // A budget below what the scene needs before any refinement fails before the tree is built.
+    let estimate = memory::estimate(
+        &scene,
+        &cfg,
+        rayon::current_num_threads(),
+        cfg.reserved_memory,
+    );
+    memory::check_fixed(&estimate, &cfg)?;
     let t = Instant::now();
     let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
     let cluster_seconds = t.elapsed().as_secs_f64();
@@ -185,7 +201,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     }
     let bars = Bars::new(g.quiet || args.bench || g.json);
     let progress: &dyn Progress = if g.quiet { &NoProgress } else { &bars };
-    let sol = solve_cancellable(&scene, &tree, &cfg, progress, &cancel)?;
+    let mut sol = solve_cancellable(&scene, &tree, &cfg, progress, &cancel)?;
     let st = &sol.stats;
     if args.bench {
         let mut v = serde_json::to_value(st)?;
@@ -193,13 +209,12 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         v["history"] = serde_json::json!(st.history.len());
         return super::print_json(&v);
     }
+    // The outputs need the elements only: give the links' memory back first.
+    sol.links = Default::default();
     let mut files = output::write_outputs(&sol, &scene, &args.out, args.flat)
         .with_context(|| format!("writing the solution into {}", args.out.display()))?;
     {
         let mesh = output::radiosity_mesh(&sol, &scene, args.flat);
-        let view = args.camera.apply(hirad::render::CameraView::from_camera(
-            &scene.default_camera(),
-        ))?;
         let img = match args.gather.gather {
             Some(n) => {
                 args.gather
@@ -286,4 +301,10 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         println!("wrote {}", f.display());
     }
     Ok(())
+}
+
+/// Bytes the image of `view` holds while it is rendered and written: linear RGB, depth and ids
+/// per pixel, and the encoded file.
+fn image_bytes(view: &hirad::render::CameraView) -> u64 {
+    view.width as u64 * view.height as u64 * 64
 }
