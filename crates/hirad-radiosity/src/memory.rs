@@ -13,7 +13,8 @@ use hirad_core::{Error, Result};
 use hirad_scene::Scene;
 
 /// Resident bytes of the process outside every counted array: code, libraries, thread
-/// stacks, the allocator's per-thread arenas and free lists (measured, perf-log 2026-12-04).
+/// stacks, the allocator's per-thread arenas and free lists (with [`THREAD_SCRATCH_BYTES`]
+/// an upper pick over what cornell and office leave uncounted, perf-log 2026-12-04).
 pub const PROCESS_BYTES: u64 = 24_000_000;
 
 /// Bytes per thread for the scratch of parallel chunks (kernel samples, members, stacks).

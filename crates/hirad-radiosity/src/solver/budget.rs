@@ -15,10 +15,12 @@ use hirad_core::Result;
 use std::mem::size_of;
 
 /// Bytes per leaf of the output mesh, its vertex index and fit arrays and the file buffers
-/// (`output::write_outputs`; measured, perf-log 2026-12-04).
+/// (`output::write_outputs`), estimated from their element sizes for about two vertices per
+/// leaf (not measured on its own).
 const OUTPUT_PER_LEAF: u64 = 600;
 
-/// Bytes per root of push-pull's per-root results, besides [`PUSH_PULL_PER_ELEMENT`].
+/// Bytes per root of push-pull's per-root results and their allocations, besides
+/// [`PUSH_PULL_PER_ELEMENT`] (from the sizes of the types).
 const PUSH_PULL_PER_ROOT: u64 = 250;
 /// Bytes per element of push-pull's updates.
 const PUSH_PULL_PER_ELEMENT: u64 = 48;
