@@ -26,6 +26,9 @@ const TREE_PER_TRIANGLE: u64 = 20;
 const LAYOUT_PER_TRIANGLE: u64 = 64;
 /// Bytes per input triangle of coplanar overlaps and shut masks (22–34 on the large scenes).
 const COVERS_PER_TRIANGLE: u64 = 40;
+/// Bytes per root surface element of the initial element arena, clusters and per-element
+/// sums included (272–300 on the shared scenes).
+const ARENA_PER_ROOT: u64 = 320;
 /// Bytes per root surface element (a triangle's side) of a default solve: elements, links,
 /// the gather's buffers and the output mesh (VmHWM less the fixed part over the roots of
 /// default solves, perf-log 2026-12-04).
@@ -42,6 +45,8 @@ pub struct MemoryEstimate {
     pub layout: u64,
     /// Overlaps and shut masks (estimated per triangle).
     pub covers: u64,
+    /// The initial element arena (roots and clusters; estimated per root).
+    pub elements: u64,
     /// The process and the threads' scratch ([`PROCESS_BYTES`], [`THREAD_SCRATCH_BYTES`]).
     pub process: u64,
     /// What the caller holds beside the solve (images).
@@ -75,13 +80,14 @@ pub fn estimate(
         tree: tris * TREE_PER_TRIANGLE,
         layout: tris * LAYOUT_PER_TRIANGLE,
         covers: tris * COVERS_PER_TRIANGLE,
+        elements: roots * ARENA_PER_ROOT,
         process: process_bytes(threads),
         reserved,
         ..Default::default()
     };
-    e.fixed = e.scene + e.tree + e.layout + e.covers + e.process + e.reserved;
+    e.fixed = e.scene + e.tree + e.layout + e.covers + e.elements + e.process + e.reserved;
     // Measured on the default preset only: other ε and minimum areas are not modelled.
-    e.solve = roots * SOLVE_PER_ROOT;
+    e.solve = (roots * SOLVE_PER_ROOT).saturating_sub(e.elements);
     e.total = e.fixed + e.solve;
     e
 }
@@ -114,11 +120,13 @@ pub fn check_fixed(e: &MemoryEstimate, cfg: &SolverConfig) -> Result<()> {
             b,
             e.fixed,
             &format!(
-                "scene {}, cluster tree ~{}, ray layout ~{}, overlaps ~{}, process {}, images {}",
+                "scene {}, cluster tree ~{}, ray layout ~{}, overlaps ~{}, elements ~{}, \
+                 process {}, images {}",
                 mb(e.scene),
                 mb(e.tree),
                 mb(e.layout),
                 mb(e.covers),
+                mb(e.elements),
                 mb(e.process),
                 mb(e.reserved)
             ),

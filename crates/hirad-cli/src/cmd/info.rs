@@ -173,12 +173,12 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             "memory (estimate)",
             format!(
                 "~{} for a default solve: {} before refinement (scene {}, cluster tree, ray \
-                 layout, overlaps ~{}, process {}, image {}) + elements and links ~{} ({} B \
-                 per triangle side, measured; --max-memory bounds it)",
+                 layout, overlaps, element arena ~{}, process {}, image {}) + refinement ~{} \
+                 ({} B per triangle side in all, measured; --max-memory bounds it)",
                 mb(mem.total),
                 mb(mem.fixed),
                 mb(mem.scene),
-                mb(mem.tree + mem.layout + mem.covers),
+                mb(mem.tree + mem.layout + mem.covers + mem.elements),
                 mb(mem.process),
                 mb(mem.reserved),
                 mb(mem.solve),
