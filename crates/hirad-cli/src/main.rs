@@ -76,7 +76,7 @@ enum Command {
     Study(cmd::study::Args),
     /// Solve, render from the view and compare with two path-traced references.
     Validate(cmd::validate::Args),
-    /// Write a self-contained HTML viewer (WebGL2) of a solution glb.
+    /// Write a self-contained HTML viewer (WebGL2) of a solution glb, or serve it on 127.0.0.1.
     View(cmd::view::Args),
 }
 

@@ -13,6 +13,7 @@ pub mod study;
 pub mod study_slurm;
 pub mod validate;
 pub mod view;
+pub mod view_serve;
 
 use hirad::scene::{Scene, SceneOptions};
 use std::sync::atomic::{AtomicBool, Ordering};

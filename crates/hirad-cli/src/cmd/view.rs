@@ -4,7 +4,8 @@
 //! radiance B/π (`_RADIOSITY`, else `COLOR_0`) × 2^exposure, linear → sRGB in the shader, back
 //! faces black, as `hirad render` does; orbit and walk cameras, the glb's cameras and those of
 //! `--scene` as presets (template: `view.html`; `#noui&noaa` after its URL gives the bare
-//! canvas without antialiasing, the pixels of `hirad render --ss 1`).
+//! canvas without antialiasing, the pixels of `hirad render --ss 1`). `--serve` serves the same
+//! page and the glb over local HTTP instead (`view_serve`).
 
 use super::image_args::{parse_exposure, Exposure};
 use crate::Global;
@@ -20,8 +21,19 @@ pub struct Args {
     /// Solution to show: a `.glb` (as `hirad solve` writes it; any triangle glb works).
     pub solution: PathBuf,
     /// Output HTML file [default: viewer.html next to SOLUTION].
-    #[arg(long)]
+    #[arg(long, conflicts_with = "serve")]
     pub out: Option<PathBuf>,
+    /// Serve the page over HTTP instead of writing a file, until interrupted (Ctrl-C), and
+    /// print its URL (also with -q). ADDR is PORT, IP:PORT or [IPv6]:PORT; the default binds
+    /// 127.0.0.1 only, on a free port (port 0: the system chooses). Only the page (`/`) and
+    /// the glb (`/NAME.glb`) are served, from memory: no directory listing, no other file;
+    /// paths with `..` (also %2e%2e) or that are not plain absolute URL paths are refused
+    /// (403), any other path is 404. An address other than loopback exposes the page to the
+    /// network.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1,
+          default_missing_value = super::view_serve::DEFAULT_ADDR,
+          value_parser = super::view_serve::parse_addr)]
+    pub serve: Option<std::net::SocketAddr>,
     /// Initial exposure in stops (radiance × 2^exposure before the sRGB transfer and clamping,
     /// as `hirad render --exposure`), or `auto`: the 99th percentile of vertex luminance maps
     /// to 1. Changed in the page with the slider or the +/- keys.
@@ -95,6 +107,9 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
     let html = TEMPLATE
         .replacen("/*HIRAD_CONFIG*/null", &config, 1)
         .replacen("HIRAD_GLB_BASE64", &base64::encode(&glb), 1);
+    if let Some(addr) = a.serve {
+        return super::view_serve::serve(addr, html, glb, &name);
+    }
     hirad::io::write_bytes_atomic(&out, html.as_bytes())?;
     tracing::info!("wrote {} ({} bytes)", out.display(), html.len());
     if !_g.quiet {
