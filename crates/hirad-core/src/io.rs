@@ -1,5 +1,8 @@
-//! Output helpers: every file is written atomically (temporary file in the same directory, then
-//! rename), so an interrupted run never leaves a half-written file behind.
+//! File helpers. Outputs are written atomically (temporary file in the same directory, then
+//! rename), so an interrupted run never leaves a half-written file behind. Inputs are read with
+//! [`read_input`], which refuses what is not a regular file: a path taken from a scene file
+//! (an MGF include, a glTF buffer, a TOML mesh) naming `/dev/zero` or a FIFO would otherwise
+//! read forever or block.
 
 use crate::{Error, Result};
 use std::io::{BufWriter, Write};
@@ -40,6 +43,16 @@ where
     Ok(())
 }
 
+/// Read an input file whole; a path that is not a regular file (device, FIFO, directory) is an
+/// [`Error::Input`] naming it.
+pub fn read_input(path: &Path) -> Result<Vec<u8>> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::input(path, "not a regular file"));
+    }
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
 /// Write bytes atomically.
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes))
@@ -54,6 +67,21 @@ pub fn write_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn read_input_refuses_devices_and_directories() {
+        let dir = tempfile::tempdir().unwrap();
+        for p in [Path::new("/dev/zero"), dir.path()] {
+            let e = read_input(p).unwrap_err();
+            assert!(
+                e.is_input() && e.to_string().contains("not a regular file"),
+                "{e}"
+            );
+        }
+        let f = dir.path().join("a.txt");
+        std::fs::write(&f, "x").unwrap();
+        assert_eq!(read_input(&f).unwrap(), b"x");
+    }
 
     #[test]
     fn failed_fill_leaves_nothing() {

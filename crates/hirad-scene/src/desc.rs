@@ -105,7 +105,9 @@ pub fn load(path: &Path, opts: &SceneOptions) -> Result<Scene> {
 /// Load a TOML scene description into raw (unvalidated) scene data; MGF meshes are
 /// tessellated with `mgf_divisions` ([`super::mgf::load_with`]).
 pub fn load_raw(path: &Path, mgf_divisions: usize) -> Result<RawScene> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
+    let text = String::from_utf8(bytes)
+        .map_err(|_| Error::input(path, "not UTF-8 text (TOML scene description expected)"))?;
     let desc: Desc = toml::from_str(&text).map_err(|e| match e.span() {
         Some(s) => Error::input_at(path, line_of(&text, s.start), e.message().to_string()),
         None => Error::input(path, e.message().to_string()),

@@ -325,11 +325,12 @@ pub fn read_colored_mesh(path: &Path) -> Result<ColoredMesh> {
 }
 
 fn read_colored_gltf(path: &Path) -> Result<ColoredMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     let base = path.parent().map(Path::to_path_buf);
     let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<ColoredMesh> {
         let bad = |e: gltf::Error| Error::input(path, format!("malformed glTF: {e}"));
         let g = gltf::Gltf::from_slice(&bytes).map_err(bad)?;
+        super::gltf_io::check_buffer_files(path, &g.document, base.as_deref())?;
         let buffers = gltf::import_buffers(&g.document, base.as_deref(), g.blob).map_err(bad)?;
         let mut out = ColoredMesh::default();
         for mesh in g.document.meshes() {

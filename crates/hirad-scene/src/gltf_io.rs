@@ -21,7 +21,7 @@ const MAX_DEPTH: usize = 128;
 
 /// Load a glTF 2.0 file into raw scene data.
 pub fn load(path: &Path) -> Result<RawScene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     let base = path.parent().map(Path::to_path_buf);
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         load_bytes(path, &bytes, base.as_deref())
@@ -45,9 +45,66 @@ fn gltf_err(path: &Path, e: gltf::Error) -> Error {
     }
 }
 
+/// External buffers must be regular files: the `gltf` crate reads them whole, and a `uri` such as
+/// `/dev/zero` would never end. URIs are resolved as `gltf::import_buffers` resolves them.
+pub(crate) fn check_buffer_files(
+    path: &Path,
+    doc: &gltf::Document,
+    base: Option<&Path>,
+) -> Result<()> {
+    let Some(base) = base else { return Ok(()) };
+    for b in doc.buffers() {
+        let gltf::buffer::Source::Uri(uri) = b.source() else {
+            continue;
+        };
+        let file = if let Some(f) = uri.strip_prefix("file://").or(uri.strip_prefix("file:")) {
+            std::path::PathBuf::from(f)
+        } else if uri.contains(':') {
+            continue; // data URI, or a scheme the reader refuses
+        } else {
+            base.join(percent_decode(uri))
+        };
+        if !file.is_file() {
+            return Err(Error::input(
+                path,
+                format!(
+                    "buffer {}: {} is not a regular file",
+                    b.index(),
+                    file.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `%XX` escapes decoded (invalid UTF-8 replaced).
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = b
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok());
+        match (b[i], hex.and_then(|h| u8::from_str_radix(h, 16).ok())) {
+            (b'%', Some(v)) => {
+                out.push(v);
+                i += 3;
+            }
+            (c, _) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
 fn load_bytes(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<RawScene> {
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice(bytes).map_err(|e| gltf_err(path, e))?;
+    check_buffer_files(path, &document, base)?;
     let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| gltf_err(path, e))?;
     let mut raw = RawScene {
         name: path

@@ -23,7 +23,7 @@ const DEFAULT_RHO: f32 = 0.5;
 
 /// Load an OBJ file (and its MTL libraries) into raw scene data.
 pub fn load(path: &Path) -> Result<RawScene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     match parse(path, &bytes, true)? {
         Some(raw) => Ok(raw),
         None => {
@@ -39,7 +39,7 @@ pub fn load(path: &Path) -> Result<RawScene> {
 /// Load an OBJ file through the `tobj` crate only (the fallback of [`load`], also used to
 /// cross-check the fast parser). Panics inside `tobj` become [`Error::Input`].
 pub fn load_with_tobj(path: &Path) -> Result<RawScene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let opts = tobj::LoadOptions {
         triangulate: true,
@@ -48,7 +48,14 @@ pub fn load_with_tobj(path: &Path) -> Result<RawScene> {
         ignore_lines: true,
     };
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_obj_buf(&mut &bytes[..], &opts, |p| tobj::load_mtl(dir.join(p)))
+        tobj::load_obj_buf(&mut &bytes[..], &opts, |p| {
+            // tobj opens the library itself: only regular files (not /dev/zero, FIFOs).
+            let f = dir.join(p);
+            if !f.is_file() {
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+            tobj::load_mtl(f)
+        })
     }));
     let (models, materials) = match result {
         Ok(Ok(r)) => r,
@@ -494,7 +501,7 @@ fn intern_object(objects: &mut Vec<String>, ids: &mut HashMap<Vec<u8>, u32>, nam
 /// Parse an MTL file: `newmtl`, `Kd` (ρ) and `Ke` (L_e); other statements are ignored. Errors
 /// name the MTL file and line: unparsable colours, ρ outside [0, 1], negative or non-finite Ke.
 pub fn parse_mtl(path: &Path) -> Result<Vec<Material>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     let mut out: Vec<Material> = Vec::new();
     for (line_no, line) in content_lines(&bytes) {
         let split = line.iter().position(|&b| is_space(b)).unwrap_or(line.len());

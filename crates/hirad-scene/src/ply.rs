@@ -322,7 +322,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
 
 /// Read a PLY file: positions, fan-triangulated faces, optional vertex colours.
 pub fn read(path: &Path) -> Result<PlyMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = hirad_core::io::read_input(path)?;
     read_bytes(path, &bytes)
 }
 

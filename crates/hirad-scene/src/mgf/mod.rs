@@ -189,6 +189,13 @@ impl Loader {
                 |at| at.err(format!("include loop: {} includes itself", path.display())),
             ));
         }
+        // Not a device or FIFO (`i /dev/zero` would read forever).
+        if !canon.is_file() {
+            return Err(at.map_or_else(
+                || Error::input(path, "not a regular file"),
+                |at| at.err(format!("include {} is not a regular file", path.display())),
+            ));
+        }
         let bytes = std::fs::read(path).map_err(io_err)?;
         let text = String::from_utf8_lossy(&bytes);
         let stmts = statements(&text);
