@@ -1,0 +1,4 @@
+#![no_main]
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    hirad_fuzz::fuzz_one(hirad_fuzz::Target::Obj, data);
+});
