@@ -126,11 +126,22 @@ impl Loader {
         body: &mut dyn FnMut(&mut Loader) -> Result<()>,
     ) -> Result<()> {
         let mut idx = vec![0u64; dims.len()];
-        for _ in 0..total {
+        let before = self.raw.triangles.len() as u64;
+        for e in 0..total {
             self.push_xf(at, args.matrix(&idx))?;
             let r = body(self);
             self.xf.pop();
             r?;
+            // Every element repeats the first one's triangles: stop a runaway array now rather
+            // than after building (and storing) the limit's worth of triangles.
+            let per = self.raw.triangles.len() as u64 - before;
+            let expected = before.saturating_add(per.saturating_mul(total));
+            if e == 0 && expected > super::MAX_TRIANGLES as u64 {
+                return Err(at.err(format!(
+                    "xf array of {total} elements × {per} triangles exceeds {} triangles",
+                    super::MAX_TRIANGLES
+                )));
+            }
             for k in (0..idx.len()).rev() {
                 idx[k] += 1;
                 if idx[k] < dims[k] {
