@@ -6,6 +6,9 @@ use glam::Vec3;
 use hirad_core::{Error, Result};
 use std::path::Path;
 
+/// Largest image read (pixels; 8192 × 4096, 400 MB as linear RGB).
+pub const MAX_PIXELS: usize = 1 << 25;
+
 /// A linear RGB image, row-major, top row first. Pixels are radiance (W/(m²·sr)) when the image
 /// comes from the rasteriser or the path tracer.
 #[derive(Clone, Debug, PartialEq)]
@@ -122,6 +125,21 @@ impl Image {
     /// Read the first RGB(A) layer of an OpenEXR file (alpha ignored).
     pub fn read_exr(path: &Path) -> Result<Image> {
         use exr::prelude::{read_first_rgba_layer_from_file, Vec2};
+        // The pixels are allocated from the header's size before any data is read: a few
+        // bytes claiming 65536 × 65536 must be an error, not a 50 GB allocation.
+        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| match e {
+            exr::error::Error::Io(io) => Error::io(path, io),
+            other => Error::input(path, format!("cannot read EXR: {other}")),
+        })?;
+        for h in &meta.headers {
+            let (w, ht) = (h.layer_size.width(), h.layer_size.height());
+            if w.saturating_mul(ht) > MAX_PIXELS {
+                return Err(Error::input(
+                    path,
+                    format!("EXR of {w} x {ht} pixels: more than {MAX_PIXELS} pixels"),
+                ));
+            }
+        }
         let img = read_first_rgba_layer_from_file(
             path,
             |res: Vec2<usize>, _| Image::new(res.width() as u32, res.height() as u32, Vec3::ZERO),
