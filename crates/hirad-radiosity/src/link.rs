@@ -2,6 +2,7 @@
 //! grouped by receiver after each refinement (CSR-like groups, see [`LinkSet`]).
 
 use super::element::{Elements, Kind};
+use rayon::slice::ParallelSliceMut;
 use serde::{Deserialize, Serialize};
 
 /// A link from `src` to `recv`: the receiver gathers `k · B_src` (irradiance, W/m²).
@@ -163,9 +164,8 @@ impl LinkKind {
     }
 }
 
-/// The links of a solution, sorted by receiver (in place; the order within a receiver
-/// follows from the refinement order alone, so it does not depend on the thread count), with
-/// one group per receiver.
+/// The links of a solution, sorted by receiver and then source (so the order does not depend
+/// on the thread count), with one group per receiver.
 #[derive(Clone, Debug, Default)]
 pub struct LinkSet {
     /// The links, sorted by receiver.
@@ -211,7 +211,7 @@ impl LinkSet {
             .sum()
     }
 
-    /// Sort `links` by receiver and build the groups; `samples` holds the samples the links
+    /// Sort `links` by (receiver, source) and build the groups; `samples` holds the samples the links
     /// refer to (`per_link` each), compacted here to those of the links kept.
     pub fn from_links(mut links: Vec<Link>, samples: &[Sample], per_link: u32) -> LinkSet {
         let pl = per_link as usize;
@@ -223,7 +223,9 @@ impl LinkSet {
                 kept.extend_from_slice(&samples[s..s + pl]);
             }
         }
-        links.sort_unstable_by_key(|l| l.recv);
+        // (receiver, source) orders the links completely: the order does not depend on the
+        // sort or the thread count.
+        links.par_sort_unstable_by_key(|l| ((l.recv as u64) << 32) | l.src as u64);
         // Held for the rest of the solve: no spare capacity (the memory budget counts it).
         links.shrink_to_fit();
         kept.shrink_to_fit();

@@ -22,6 +22,7 @@ use glam::Vec3;
 use hirad_accel::cluster::ClusterTree;
 use hirad_accel::ray::volume::Endpoint;
 use hirad_core::rng::SplitMix64;
+use smallvec::SmallVec;
 
 /// Samples and bounds of a link kernel.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -66,7 +67,7 @@ pub(super) fn deposit_at(
     let deposit = match vr {
         Some(v) if !recv.is_empty() => {
             let c = draw_first(recv, rng);
-            let paths: Vec<u32> = recv[..c]
+            let paths: SmallVec<[u32; Deposit::POINTS]> = recv[..c]
                 .iter()
                 .map(|s| quad_path(v, s.0, Deposit::LEVELS))
                 .collect();
@@ -79,7 +80,7 @@ pub(super) fn deposit_at(
     let draw = match vs {
         Some(v) if mixed && !seen.is_empty() => {
             let c = draw_first(seen, rng);
-            let paths: Vec<u32> = seen[..c]
+            let paths: SmallVec<[u32; Deposit::POINTS]> = seen[..c]
                 .iter()
                 .map(|s| quad_path(v, s.1, Deposit::LEVELS))
                 .collect();
@@ -312,8 +313,8 @@ impl KernelCtx<'_> {
         let n = self.n_rays.max(1);
         let mut rng =
             SplitMix64::for_item(self.seed ^ 0x005E_ED0F_114C, ((i as u64) << 32) | j as u64);
-        let mut su = Vec::with_capacity(n);
-        let mut sv = Vec::with_capacity(n);
+        let mut su = Samples::new();
+        let mut sv = Samples::new();
         stratified_2d(n, &mut rng, &mut su);
         stratified_2d(n, &mut rng, &mut sv);
         let est = est.unwrap_or_else(|| self.estimate(i, j));
@@ -374,9 +375,9 @@ impl KernelCtx<'_> {
         }
         let mut n_open = 0usize;
         // (receiver point, source point) of the samples whose rays were open.
-        let mut seen = Vec::new();
+        let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
         // Receiver points of the samples that count, and whether their rays were open.
-        let mut recv = Vec::new();
+        let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -607,6 +608,12 @@ impl KernelCtx<'_> {
         self.vis.transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, a, b)
     }
 }
+
+/// Per-link sample lists held inline (no allocation) up to this many samples.
+pub(super) const INLINE: usize = 16;
+
+/// A link's 2-D sample numbers.
+pub(super) type Samples = SmallVec<[[f32; 2]; INLINE]>;
 
 /// [`KernelCtx::sample_cluster`] found no surface.
 pub(crate) const NO_MEMBER: u32 = crate::link::NO_MEMBER;

@@ -3,11 +3,12 @@
 //! cannot resolve), on the source when it is the smaller end (reciprocity); links with a
 //! cluster end closer than its size are judged on a geometric bound of their kernel.
 
-use super::kernel::{deposit_at, End, KernelEval};
+use super::kernel::{deposit_at, End, KernelEval, Samples, INLINE};
 use super::sampling::{jittered_grid, sample_triangle, sample_triangle_above, stratified_2d};
 use super::KernelCtx;
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
+use smallvec::SmallVec;
 use std::f64::consts::PI;
 
 impl KernelCtx<'_> {
@@ -95,9 +96,9 @@ impl KernelCtx<'_> {
         };
         let k = (m as f64).sqrt().ceil() as usize;
         let m = k * k;
-        let mut pts = Vec::with_capacity(m);
+        let mut pts: SmallVec<[[f32; 2]; NEAR_FIELD_MAX]> = SmallVec::new();
         jittered_grid(k, rng, &mut pts);
-        let xs: Vec<Vec3> = pts
+        let xs: SmallVec<[Vec3; NEAR_FIELD_MAX]> = pts
             .iter()
             .map(|u| sample_triangle(&gv, u[0], u[1]))
             .collect();
@@ -108,7 +109,7 @@ impl KernelCtx<'_> {
             area: 0.0,
             tri: 0,
         };
-        let mut cdf = Vec::with_capacity(m);
+        let mut cdf: SmallVec<[f64; NEAR_FIELD_MAX]> = SmallVec::new();
         let (mut acc, mut fmin, mut fmax) = (0.0f64, f64::INFINITY, 0.0f64);
         let mut n_open = 0usize;
         for &x in &xs {
@@ -130,13 +131,13 @@ impl KernelCtx<'_> {
                 ..Default::default()
             };
         }
-        let mut sv = Vec::with_capacity(n);
+        let mut sv = Samples::new();
         stratified_2d(n, rng, &mut sv);
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
         // The open rays' ends, each taken to carry an equal share (the grid end drawn in
         // proportion to the form factor, the other end uniform over its part in front).
-        let mut seen = Vec::new();
-        let mut recv = Vec::new();
+        let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
+        let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;

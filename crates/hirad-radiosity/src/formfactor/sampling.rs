@@ -48,33 +48,31 @@ pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
     v[0] * b0 + v[1] * b1 + v[2] * b2
 }
 
-/// `n` stratified (Latin hypercube) jittered 2-D samples in [0, 1)².
-pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
-    out.clear();
-    let mut perm: Vec<usize> = (0..n).collect();
+/// `n` stratified (Latin hypercube) jittered 2-D samples in [0, 1)², appended to `out`.
+pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut impl Extend<[f32; 2]>) {
+    let mut perm: smallvec::SmallVec<[usize; 16]> = (0..n).collect();
     for i in (1..n).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         perm.swap(i, j);
     }
     let inv = 1.0 / n as f32;
-    for (k, &p) in perm.iter().enumerate() {
+    out.extend(perm.iter().enumerate().map(|(k, &p)| {
         let u = ((k as f32 + rng.next_f32()) * inv).min(0.999_999_9);
         let v = ((p as f32 + rng.next_f32()) * inv).min(0.999_999_9);
-        out.push([u, v]);
-    }
+        [u, v]
+    }));
 }
 
 /// `k × k` jittered 2-D samples in [0, 1)², one per cell of a regular grid: stratified in
 /// both dimensions together, unlike [`stratified_2d`], whose error on a function peaked in a
-/// small region (a receiver close above a source) is that of plain Monte Carlo.
-pub fn jittered_grid(k: usize, rng: &mut SplitMix64, out: &mut Vec<[f32; 2]>) {
-    out.clear();
+/// small region (a receiver close above a source) is that of plain Monte Carlo. Appended to
+/// `out`.
+pub fn jittered_grid(k: usize, rng: &mut SplitMix64, out: &mut impl Extend<[f32; 2]>) {
     let inv = 1.0 / k as f32;
-    for i in 0..k {
-        for j in 0..k {
-            let u = ((i as f32 + rng.next_f32()) * inv).min(0.999_999_9);
-            let v = ((j as f32 + rng.next_f32()) * inv).min(0.999_999_9);
-            out.push([u, v]);
-        }
-    }
+    out.extend((0..k * k).map(|c| {
+        let (i, j) = (c / k, c % k);
+        let u = ((i as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        let v = ((j as f32 + rng.next_f32()) * inv).min(0.999_999_9);
+        [u, v]
+    }));
 }

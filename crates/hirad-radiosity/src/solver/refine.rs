@@ -249,6 +249,8 @@ impl Solver<'_> {
         let mut rays = 0;
         let mut eval = None;
         let mut est_raw = None;
+        // The unoccluded kernel's range over a surface receiver, when the estimate took it.
+        let mut spread = None;
         let mut members = None;
         // The link's estimate is a bound where the ends are near ([`KernelCtx::near_bound`]).
         let mut bounded = false;
@@ -275,7 +277,13 @@ impl Solver<'_> {
             bounded = near > 0.0;
             match ok {
                 Oracle::Bf => {
-                    let e = ctx.estimate(ri, sj);
+                    let e = if r.kind == Kind::Surface {
+                        let sp = ctx.spread(ri, sj);
+                        spread = Some(sp);
+                        sp.1
+                    } else {
+                        ctx.estimate(ri, sj)
+                    };
                     est_raw = Some(e);
                     link.est = (e * g.max(1.0)).max(near) as f32;
                 }
@@ -349,7 +357,7 @@ impl Solver<'_> {
             if unresolved && r.kind == Kind::Surface {
                 if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
                     let varies = || {
-                        let (fmin, fmax) = ctx.spread(ri, sj);
+                        let (fmin, fmax) = spread.unwrap_or_else(|| ctx.spread(ri, sj));
                         oracle::wants_refine(
                             Oracle::Error,
                             self.eps,
