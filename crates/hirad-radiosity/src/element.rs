@@ -86,8 +86,13 @@ pub struct Elements {
     pub first_root: u32,
     /// Number of input triangles.
     pub num_tris: u32,
-    /// Back faces present.
+    /// Back faces present (root ids `first_root + num_tris + tri`).
     pub two_sided: bool,
+    /// Per input triangle: its back face takes part in the solve (all when the solve is
+    /// two-sided; per material otherwise, [`Scene::has_back`]). The back root of a triangle
+    /// without one exists only to keep the ids regular: no cluster holds it, no link reaches it
+    /// and its radiosity stays 0, as for a one-sided surface ([`Elements::is_dead`]).
+    pub has_back: Vec<bool>,
     /// Radiosity B per element (W/m², RGB).
     pub b: Vec<DVec3>,
     /// Irradiance gathered through the element's own links in the last gather.
@@ -107,7 +112,11 @@ impl Elements {
     pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Elements {
         let nc = tree.nodes.len() as u32;
         let nt = scene.num_triangles() as u32;
-        let sides = if two_sided { 2 } else { 1 };
+        let has_back: Vec<bool> = (0..nt as usize)
+            .map(|t| scene.has_back(t, two_sided))
+            .collect();
+        let any_back = has_back.iter().any(|&b| b);
+        let sides = if any_back { 2 } else { 1 };
         let total = nc as usize + (nt as usize) * sides;
         let mut elems = Vec::with_capacity(total + total / 2);
         for (id, node) in tree.nodes.iter().enumerate() {
@@ -128,7 +137,7 @@ impl Elements {
             });
         }
         for side in 0..sides {
-            for t in 0..nt as usize {
+            for (t, &back) in has_back.iter().enumerate() {
                 let [a, b, c] = scene.tri_vertices(t);
                 let m = scene.material_of(t);
                 let (verts, normal, emission) = if side == 0 {
@@ -139,6 +148,11 @@ impl Elements {
                     )
                 } else {
                     ([a, c, b], -scene.normals[t], Vec3::ZERO)
+                };
+                let rho = if side == 0 || back {
+                    m.rho
+                } else {
+                    Vec3::ZERO
                 };
                 elems.push(Element {
                     kind: Kind::Surface,
@@ -152,7 +166,7 @@ impl Elements {
                     normal,
                     area: scene.areas[t],
                     centroid: (a + b + c) / 3.0,
-                    rho: m.rho,
+                    rho,
                     emission,
                 });
             }
@@ -163,8 +177,9 @@ impl Elements {
             let start = cluster_kids.len() as u32;
             cluster_kids.extend(node.children());
             for &s in tree.node_surfaces(id as u32) {
-                for side in 0..sides as u32 {
-                    cluster_kids.push(nc + side * nt + s);
+                cluster_kids.push(nc + s);
+                if sides == 2 && has_back[s as usize] {
+                    cluster_kids.push(nc + nt + s);
                 }
             }
             let e = &mut elems[id];
@@ -208,13 +223,21 @@ impl Elements {
             num_clusters: nc,
             first_root: nc,
             num_tris: nt,
-            two_sided,
+            two_sided: any_back,
+            has_back,
             b: vec![DVec3::ZERO; n],
             h: vec![DVec3::ZERO; n],
             direct: vec![DVec3::ZERO; n],
             open: vec![1.0; n],
             orient,
         }
+    }
+
+    /// Element `id` is the back root of a triangle without a back face ([`Elements::has_back`]).
+    #[inline]
+    pub fn is_dead(&self, id: u32) -> bool {
+        let e = &self.elems[id as usize];
+        e.back && !self.has_back[e.tri as usize]
     }
 
     /// Number of elements.

@@ -70,7 +70,7 @@ pub fn estimate(
 ) -> MemoryEstimate {
     let tris = scene.num_triangles() as u64;
     let roots = tris
-        * if cfg.two_sided || scene.two_sided {
+        * if scene.any_back(cfg.two_sided || scene.two_sided) {
             2
         } else {
             1

@@ -110,7 +110,8 @@ impl Covers {
 
     /// Find the coplanar overlaps of `scene`, querying the bounding boxes of `tree`. One-sided
     /// triangles overlap only when they face the same way (back-to-back faces of a thin board
-    /// each receive from their own side); two-sided ones always do.
+    /// each receive from their own side); two with a back face ([`Scene::has_back`] with
+    /// `two_sided`) always do.
     pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Covers {
         let n = scene.num_triangles();
         let mut object_area = vec![0.0f64; scene.objects.len().max(1)];
@@ -132,9 +133,10 @@ impl Covers {
         }
         let extent: Vec<f32> = boxes.iter().map(|b| b.extent().length()).collect();
         let gap = |t: u32| GAP_REL * extent[scene.tri_object[t as usize] as usize];
+        let back = |t: u32| scene.has_back(t as usize, two_sided);
         let per: Vec<Vec<(u32, Vec3)>> = (0..n)
             .into_par_iter()
-            .map(|i| covering(scene, tree, i as u32, two_sided, &rank, &gap))
+            .map(|i| covering(scene, tree, i as u32, &back, &rank, &gap))
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);
         let (mut ids, mut shapes, mut sides) = (Vec::new(), Vec::new(), Vec::new());
@@ -171,7 +173,7 @@ impl Covers {
             grid_of,
             grids,
             items,
-            shut: ShutMasks::build(scene, tree, two_sided),
+            shut: ShutMasks::build(scene, tree, scene.any_back(two_sided)),
         }
     }
 
@@ -258,17 +260,17 @@ impl Covers {
 }
 
 /// The triangles covering part of triangle `i`, each with the normal of the side of `i` it
-/// covers (zero: both sides). Coplanar triangles (facing the same way unless `two_sided`)
-/// cover `i` on both sides where they overlap it with positive area, when they own the
-/// overlap: lower `rank` (emitter first, then object area, then triangle area), or equal rank
-/// and a lower id. A parallel triangle across a closed gap (no farther than the smaller of
-/// `gap(i)` and `gap(j)`, in front of `i` unless `two_sided`) covers the side of `i` that
-/// faces it.
+/// covers (zero: both sides). Coplanar triangles (facing the same way unless one of them has a
+/// back face, `back`) cover `i` on both sides where they overlap it with positive area, when
+/// they own the overlap: lower `rank` (emitter first, then object area, then triangle area), or
+/// equal rank and a lower id. A parallel triangle across a closed gap (no farther than the
+/// smaller of `gap(i)` and `gap(j)`, in front of `i`, or behind it when `i` has a back face)
+/// covers the side of `i` that faces it.
 fn covering(
     scene: &Scene,
     tree: &ClusterTree,
     i: u32,
-    two_sided: bool,
+    back: &(impl Fn(u32) -> bool + Sync),
     rank: &(impl Fn(u32) -> (bool, f64, f32) + Sync),
     gap: &(impl Fn(u32) -> f32 + Sync),
 ) -> Vec<(u32, Vec3)> {
@@ -314,7 +316,7 @@ fn covering(
                     Some(std::cmp::Ordering::Equal) => j < i,
                     _ => false,
                 };
-                if !owns || (c < 0.0 && !two_sided) {
+                if !owns || (c < 0.0 && !back(i) && !back(j)) {
                     continue;
                 }
                 Vec3::ZERO
@@ -322,7 +324,7 @@ fn covering(
                 let g = gap(i).min(gap(j));
                 if d.iter().all(|&x| x > 0.0 && x <= g) {
                     ni
-                } else if two_sided && d.iter().all(|&x| x < 0.0 && x >= -g) {
+                } else if back(i) && d.iter().all(|&x| x < 0.0 && x >= -g) {
                     -ni
                 } else {
                     continue;

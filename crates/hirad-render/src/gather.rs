@@ -253,7 +253,7 @@ impl<'a> Gatherer<'a> {
                 let tri = h.tri as usize;
                 let ng = scene.normals[tri];
                 let front = ng.dot(d) < 0.0;
-                if !front && !self.opts.two_sided {
+                if !front && !scene.has_back(tri, self.opts.two_sided) {
                     Vec3::ZERO
                 } else {
                     let mat = scene.material_of(tri);
@@ -337,7 +337,7 @@ impl<'a> Gatherer<'a> {
             let mut l = Vec3::ZERO;
             if front {
                 l += mat.emission;
-            } else if !self.opts.two_sided {
+            } else if !scene.has_back(tri, self.opts.two_sided) {
                 continue;
             }
             if mat.rho.max_element() > 0.0 {

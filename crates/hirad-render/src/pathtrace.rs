@@ -147,8 +147,9 @@ impl RayLog {
 /// - Diffuse surfaces only: reflectance ρ per material, BRDF ρ/π.
 /// - One-sided surfaces by default: a ray that reaches the back of a triangle (the side opposite
 ///   its counter-clockwise normal) is absorbed, so back faces look black and block light, as
-///   surfaces without a back face do in the solver. With `two_sided`, the back is a diffuse
-///   surface with the same ρ (but it does not emit).
+///   surfaces without a back face do in the solver. With `two_sided`, or for a material the
+///   scene makes two-sided (`Scene::has_back`), the back is a diffuse surface with the same ρ
+///   (but it does not emit).
 /// - Emitters emit radiance L_e from the front face only.
 /// - Next-event estimation on emitting triangles: a triangle is chosen with probability
 ///   proportional to its power `A · mean(L_e)`, a point uniformly on it; the light sample and
@@ -293,7 +294,7 @@ impl<'a> PathTracer<'a> {
                 };
                 l += beta * mat.emission * w;
             }
-            if !front && !self.opts.two_sided {
+            if !front && !scene.has_back(tri, self.opts.two_sided) {
                 break; // one-sided: the back of a surface absorbs
             }
             let n = if front { ng } else { -ng };

@@ -252,14 +252,20 @@ pub fn load_raw(path: &Path, mgf_divisions: usize) -> Result<RawScene> {
 fn merge(raw: &mut RawScene, part: RawScene, xf: Mat4, mat_ids: &mut HashMap<String, u32>) {
     let vbase = raw.positions.len() as u32;
     let obase = raw.objects.len() as u32;
+    let sided = |i: usize| part.two_sided || part.two_sided_materials.get(i) == Some(&true);
+    let sides: Vec<bool> = (0..part.materials.len()).map(sided).collect();
     let mat_map: Vec<u32> = part
         .materials
         .into_iter()
-        .map(|m| {
-            *mat_ids.entry(m.name.clone()).or_insert_with(|| {
+        .zip(sides)
+        .map(|(m, two)| {
+            let id = *mat_ids.entry(m.name.clone()).or_insert_with(|| {
                 raw.materials.push(m);
                 raw.materials.len() as u32 - 1
-            })
+            });
+            raw.two_sided_materials.resize(raw.materials.len(), false);
+            raw.two_sided_materials[id as usize] |= two;
+            id
         })
         .collect();
     let objects = if part.objects.is_empty() {

@@ -136,6 +136,9 @@ pub struct RawScene {
     /// The file gives every non-emitting surface a back face (MGF `sides 2`): solves and
     /// images are two-sided without `--two-sided`.
     pub two_sided: bool,
+    /// Per material (indexed as `materials`, missing entries false): surfaces of it have a back
+    /// face in every solve, as MGF `sides 2` in a file whose other materials are one-sided.
+    pub two_sided_materials: Vec<bool>,
 }
 
 /// Options applied while validating a raw scene.
@@ -200,6 +203,8 @@ pub struct Scene {
     pub up: UpAxis,
     /// Every non-emitting surface has a back face ([`RawScene::two_sided`]).
     pub two_sided: bool,
+    /// Per material: its surfaces have a back face ([`RawScene::two_sided_materials`]).
+    pub two_sided_materials: Vec<bool>,
     /// What loading noticed and repaired.
     pub report: LoadReport,
 }
@@ -352,6 +357,8 @@ impl Scene {
         } else {
             raw.objects
         };
+        let mut two_sided_materials = raw.two_sided_materials;
+        two_sided_materials.resize(materials.len(), false);
         Ok(Scene {
             name: raw.name,
             source: raw.source,
@@ -369,6 +376,7 @@ impl Scene {
             cameras: raw.cameras,
             up: raw.up,
             two_sided: raw.two_sided,
+            two_sided_materials,
             report: LoadReport {
                 degenerate_dropped: degenerate,
                 clamped_materials: clamped,
@@ -407,6 +415,18 @@ impl Scene {
     #[inline]
     pub fn material_of(&self, i: usize) -> &Material {
         &self.materials[self.tri_material[i] as usize]
+    }
+
+    /// Triangle `i` has a back face in a solve that is two-sided when `two_sided` (the file's
+    /// or `--two-sided`), or whose material is ([`Scene::two_sided_materials`]).
+    #[inline]
+    pub fn has_back(&self, i: usize, two_sided: bool) -> bool {
+        two_sided || self.two_sided_materials[self.tri_material[i] as usize]
+    }
+
+    /// Some triangle has a back face ([`Scene::has_back`]).
+    pub fn any_back(&self, two_sided: bool) -> bool {
+        two_sided || (0..self.num_triangles()).any(|i| self.has_back(i, false))
     }
 
     /// Total surface area (f64 sum).
@@ -503,6 +523,8 @@ pub struct SceneSummary {
     pub up: UpAxis,
     /// The file gives every surface a back face ([`Scene::two_sided`]).
     pub two_sided: bool,
+    /// Materials whose surfaces have a back face ([`Scene::two_sided_materials`]).
+    pub two_sided_materials: usize,
     /// Emitted power Φ = Σ π·L_e·A per channel (surfaces only).
     pub emitted_power: [f64; 3],
     /// Directional sun, if any.
@@ -535,6 +557,7 @@ impl Scene {
             bbox_max: self.bbox.max,
             up: self.up,
             two_sided: self.two_sided,
+            two_sided_materials: self.two_sided_materials.iter().filter(|&&t| t).count(),
             emitted_power: self.emitted_power().to_array(),
             sun: self.sun,
             sky: self.sky,

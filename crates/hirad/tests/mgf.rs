@@ -324,7 +324,7 @@ fn redefined_material_names_stay_apart() {
 
 /// The scene is two-sided (solved and path-traced with back faces, no `--two-sided` needed)
 /// when every non-emitting material is `sides 2`; a one-sided emitter does not change that, a
-/// one-sided reflector does.
+/// one-sided reflector does, and then each surface has a back face as its material says.
 #[test]
 fn two_sided_scene_from_sides() {
     assert!(load_str(&format!("{QUAD}f a b c d\n")).unwrap().two_sided);
@@ -335,11 +335,19 @@ fn two_sided_scene_from_sides() {
             .two_sided
     );
     let one = "m one =\nsides 1\nrd .3\nf a c d\n";
-    assert!(
-        !load_str(&format!("{QUAD}f a b c\n{one}"))
-            .unwrap()
-            .two_sided
-    );
+    let mixed = load_str(&format!("{QUAD}f a b c\n{one}")).unwrap();
+    assert!(!mixed.two_sided);
+    // Mixed: the `sides 2` surface keeps its back face, the `sides 1` one has none.
+    let backs: Vec<bool> = (0..mixed.num_triangles())
+        .map(|t| mixed.has_back(t, false))
+        .collect();
+    let named: Vec<&str> = (0..mixed.num_triangles())
+        .map(|t| mixed.material_of(t).name.as_str())
+        .collect();
+    for (b, n) in backs.iter().zip(&named) {
+        assert_eq!(*b, *n != "one", "{named:?} {backs:?}");
+    }
+    assert!((0..mixed.num_triangles()).all(|t| mixed.has_back(t, true)));
     // Built-in and OBJ scenes are one-sided unless asked.
     assert!(
         !Scene::load("cornell", &SceneOptions::default())

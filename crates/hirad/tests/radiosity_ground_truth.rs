@@ -18,6 +18,9 @@ use radiosity_common::{cosine_dir, face_irradiance, quads_scene, rect, Quad};
 
 const GREY: u32 = 0;
 const LAMP: u32 = 1;
+/// The table top's material: `GREY`'s reflectance, two-sided on its own in
+/// `per_material_sides_match_the_path_tracer`.
+const TABLE: u32 = 2;
 /// Floor tiles per side.
 const TILES: u32 = 4;
 
@@ -44,7 +47,7 @@ fn room(two_sided_table: bool) -> Scene {
             Vec3::new(0.5, 0.6, 0.7),
             Vec3::X * 0.8,
             Vec3::Y * 0.8,
-            GREY,
+            TABLE,
             6,
         ),
     ];
@@ -71,6 +74,7 @@ fn room(two_sided_table: bool) -> Scene {
             rho: Vec3::ZERO,
             emission: Vec3::splat(5.0),
         },
+        Material::diffuse("table", Vec3::splat(0.6)),
     ];
     quads_scene(&q, mats)
 }
@@ -108,7 +112,8 @@ fn faces(two_sided: bool) -> Vec<(u32, bool)> {
     f
 }
 
-/// Path-traced irradiance of every compared face.
+/// Path-traced irradiance of every compared face (the table's back when `two_sided` or when
+/// the scene makes its material two-sided).
 fn references(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Vec<f64> {
     let caster = RayCaster::new(scene, tree);
     let opts = ReferenceOptions {
@@ -116,7 +121,7 @@ fn references(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Vec<f64> {
         ..Default::default()
     };
     let pt = PathTracer::new(scene, &caster, &opts);
-    faces(two_sided)
+    faces(two_sided || scene.two_sided_materials[TABLE as usize])
         .iter()
         .map(|&(g, b)| reference(scene, &pt, g, b, 200_000))
         .collect()
@@ -244,4 +249,35 @@ fn sun_and_sky_match_their_closed_forms() {
         (wall / want_wall - 1.0).abs() < 0.03,
         "wall {wall} vs {want_wall}"
     );
+}
+
+#[test]
+fn per_material_sides_match_the_path_tracer() {
+    // Only the table's material is two-sided (as MGF `sides 2` among `sides 1` materials):
+    // its back face is the underside, the walls keep no back face, without `two_sided`.
+    let mut scene = room(true);
+    scene.two_sided_materials[TABLE as usize] = true;
+    let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+    let refs = references(&scene, &tree, false);
+    let sol = solve_with(&scene, &tree, SolverConfig::default());
+    let e = error(&sol, &scene, &refs, true);
+    let el = &sol.elements;
+    let mut table_back = 0.0;
+    for t in 0..scene.num_triangles() {
+        let back = el.first_root + el.num_tris + t as u32;
+        let dead = el.is_dead(back);
+        assert_eq!(dead, scene.tri_object[t] != 6, "triangle {t}'s back");
+        if dead {
+            // No back face: nothing is linked to it, it reflects nothing.
+            assert_eq!(el.b[back as usize], glam::DVec3::ZERO, "triangle {t}");
+        } else {
+            table_back += el.b[back as usize].x;
+        }
+    }
+    eprintln!("per-material sides: error against the path tracer {e:.4}, table underside B {table_back:.4}");
+    assert!(
+        table_back > 0.0,
+        "the table's underside is lit from the floor"
+    );
+    assert!(e < 0.05, "per-material sides: {e}");
 }

@@ -131,6 +131,11 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             "two-sided",
             if s.two_sided {
                 "yes (the file gives every surface a back face)".into()
+            } else if s.two_sided_materials > 0 {
+                format!(
+                    "{} of {} materials (the file's; --two-sided gives every surface a back face)",
+                    s.two_sided_materials, s.materials
+                )
             } else {
                 "no (--two-sided gives every surface a back face)".into()
             },

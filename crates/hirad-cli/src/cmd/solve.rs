@@ -232,7 +232,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             }
             None => {
                 let mut ropts = args.raster.options();
-                if cfg.two_sided {
+                if sol.elements.two_sided {
                     // The solution mesh carries explicit back faces.
                     ropts.back_faces = hirad::render::BackFaces::Cull;
                 }

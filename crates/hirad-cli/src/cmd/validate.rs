@@ -89,7 +89,8 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let sol = solve(&scene, &tree, &cfg, &NoProgress)?;
     let solve_seconds = t.elapsed().as_secs_f64();
     let raster = RasterOptions {
-        back_faces: if cfg.two_sided {
+        // Back faces are explicit in the mesh when any triangle has one.
+        back_faces: if sol.elements.two_sided {
             BackFaces::Cull
         } else {
             BackFaces::Black
@@ -130,7 +131,7 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
         scene: a.scene.clone(),
         preset: a.preset.clone(),
         clustering: strategy.name().into(),
-        two_sided: cfg.two_sided,
+        two_sided: sol.elements.two_sided,
         spp: a.spp,
         width: view.width,
         height: view.height,

@@ -191,7 +191,10 @@ impl<'a> Solver<'a> {
         vis: &'a Visibility<'a>,
     ) -> Self {
         let mut el = Elements::build(scene, tree, cfg.two_sided);
-        let total_area = scene.total_area() * if cfg.two_sided { 2.0 } else { 1.0 };
+        // Front faces, and the back faces that take part.
+        let total_area: f64 = (0..scene.num_triangles())
+            .map(|t| scene.areas[t] as f64 * if el.has_back[t] { 2.0 } else { 1.0 })
+            .sum();
         let footprint = {
             let e = scene.bbox.extent();
             let up = scene.up.vector();
@@ -224,7 +227,11 @@ impl<'a> Solver<'a> {
         let covers = Covers::build(scene, tree, cfg.two_sided);
         for id in el.roots() {
             let e = &el.elems[id as usize];
-            el.open[id as usize] = covers.open_fraction(e.tri, e.normal, &e.verts) as f32;
+            el.open[id as usize] = if el.is_dead(id) {
+                0.0
+            } else {
+                covers.open_fraction(e.tri, e.normal, &e.verts) as f32
+            };
         }
         let stats = SolveStats {
             scene: scene.name.clone(),
@@ -236,7 +243,7 @@ impl<'a> Solver<'a> {
             min_area,
             visibility: cfg.visibility.name().to_string(),
             shadow_rays: cfg.shadow_rays,
-            two_sided: cfg.two_sided,
+            two_sided: el.two_sided,
             cluster_emission: cfg.cluster_emission.name().into(),
             cluster_receive: cfg.cluster_receive.name().into(),
             threads: rayon::current_num_threads(),
@@ -256,7 +263,7 @@ impl<'a> Solver<'a> {
                 stats.shut_triangles
             );
         }
-        let mut pp_order: Vec<u32> = el.roots().collect();
+        let mut pp_order: Vec<u32> = el.roots().filter(|&r| !el.is_dead(r)).collect();
         pp_order.sort_by_key(|&r| (tree.surface_node[el.elems[r as usize].tri as usize], r));
         let mut s = Solver {
             scene,

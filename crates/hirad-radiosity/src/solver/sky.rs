@@ -30,7 +30,7 @@ impl Solver<'_> {
             .into_par_iter()
             .map(|id| {
                 let e = &el.elems[id as usize];
-                if e.kind != Kind::Surface {
+                if e.kind != Kind::Surface || el.is_dead(id) {
                     return (DVec3::ZERO, 0);
                 }
                 let mut rng = SplitMix64::for_item(seed, id as u64);

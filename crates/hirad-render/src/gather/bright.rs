@@ -154,7 +154,7 @@ impl Gatherer<'_> {
         let tri = h.tri as usize;
         let ng = self.scene.normals[tri];
         let front = ng.dot(to) < 0.0;
-        if !front && !self.opts.two_sided {
+        if !front && !self.scene.has_back(tri, self.opts.two_sided) {
             return Vec3::ZERO;
         }
         let mat = self.scene.material_of(tri);

@@ -342,6 +342,7 @@ impl MeshBuilder {
             cameras,
             up,
             two_sided: false,
+            two_sided_materials: Vec::new(),
         }
     }
 }

@@ -91,6 +91,8 @@ pub fn load_with(path: &Path, divisions: usize) -> Result<MgfScene> {
             .iter()
             .zip(&l.raw.materials)
             .all(|(&t, m)| t || m.is_emitter());
+    // Mixed files: the two-sided materials keep their back faces in a one-sided solve.
+    l.raw.two_sided_materials = two_sided.clone();
     Ok(MgfScene {
         raw: l.raw,
         two_sided,
