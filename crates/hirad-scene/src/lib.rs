@@ -421,7 +421,12 @@ impl Scene {
     /// or `--two-sided`), or whose material is ([`Scene::two_sided_materials`]).
     #[inline]
     pub fn has_back(&self, i: usize, two_sided: bool) -> bool {
-        two_sided || self.two_sided_materials[self.tri_material[i] as usize]
+        two_sided
+            || self
+                .two_sided_materials
+                .get(self.tri_material[i] as usize)
+                .copied()
+                .unwrap_or(false)
     }
 
     /// Some triangle has a back face ([`Scene::has_back`]).
