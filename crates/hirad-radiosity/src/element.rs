@@ -149,11 +149,7 @@ impl Elements {
                 } else {
                     ([a, c, b], -scene.normals[t], Vec3::ZERO)
                 };
-                let rho = if side == 0 || back {
-                    m.rho
-                } else {
-                    Vec3::ZERO
-                };
+                let rho = if side == 0 || back { m.rho } else { Vec3::ZERO };
                 elems.push(Element {
                     kind: Kind::Surface,
                     back: side == 1,

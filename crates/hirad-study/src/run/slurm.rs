@@ -65,6 +65,17 @@ pub fn sh_quote(s: &str) -> String {
     }
 }
 
+/// `s` as one argument of an `#SBATCH` line, which sbatch splits itself (not a shell): in
+/// double quotes, `"` and `\\` escaped, when it holds white space, quotes, a backslash or
+/// `#` (which ends the line's arguments outside quotes); unchanged otherwise.
+pub fn sbatch_quote(s: &str) -> String {
+    if s.is_empty() || s.chars().any(|c| c.is_whitespace() || "\"'\\#".contains(c)) {
+        format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+    } else {
+        s.to_string()
+    }
+}
+
 /// The directory of the task that runs unit `key` in study directory `out`.
 pub fn task_dir(out: &Path, key: &str) -> PathBuf {
     out.join("slurm").join("units").join(key.replace('/', "__"))
@@ -125,13 +136,17 @@ pub fn script(job: &SlurmJob, opts: &SlurmOptions) -> String {
          #   hirad study merge {}",
         q(&job.out)
     );
-    let _ = writeln!(s, "#SBATCH --job-name={}", sh_quote(&job.name));
+    let _ = writeln!(s, "#SBATCH --job-name={}", sbatch_quote(&job.name));
     let _ = writeln!(
         s,
         "#SBATCH --output={}",
-        job.out.join("slurm/logs/%A_%a.out").display()
+        sbatch_quote(&job.out.join("slurm/logs/%A_%a.out").display().to_string())
     );
-    let _ = writeln!(s, "#SBATCH --chdir={}", job.workdir.display());
+    let _ = writeln!(
+        s,
+        "#SBATCH --chdir={}",
+        sbatch_quote(&job.workdir.display().to_string())
+    );
     let _ = writeln!(s, "#SBATCH --ntasks=1");
     if let Some(c) = opts.cpus {
         let _ = writeln!(s, "#SBATCH --cpus-per-task={c}");
@@ -142,7 +157,7 @@ pub fn script(job: &SlurmJob, opts: &SlurmOptions) -> String {
         ("mem", &opts.mem),
     ] {
         if let Some(v) = v {
-            let _ = writeln!(s, "#SBATCH --{flag}={v}");
+            let _ = writeln!(s, "#SBATCH --{flag}={}", sbatch_quote(v));
         }
     }
     let _ = writeln!(s, "set -euo pipefail\nunits=(");
@@ -316,6 +331,10 @@ mod tests {
         assert_eq!(sh_quote("my scene's.obj"), r"'my scene'\''s.obj'");
         assert_eq!(sh_quote(""), "''");
         assert_eq!(sh_quote("$HOME"), "'$HOME'");
+        // sbatch's own splitting of #SBATCH lines: double quotes, backslash escapes.
+        assert_eq!(sbatch_quote("/home/me/study"), "/home/me/study");
+        assert_eq!(sbatch_quote("/home/my study"), r#""/home/my study""#);
+        assert_eq!(sbatch_quote(r#"a"b\c#d"#), r#""a\"b\\c#d""#);
     }
 
     #[test]
