@@ -52,11 +52,14 @@ fn fixture(dir: &Path) -> PathBuf {
 
 /// `METHOD target` sent verbatim; returns (status, body).
 fn request(url: &str, method: &str, target: &str) -> (u16, Vec<u8>) {
-    let host = url
-        .trim_start_matches("http://")
-        .trim_end_matches('/')
-        .to_string();
-    let mut s = TcpStream::connect(&host).unwrap();
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    request_as(url, addr, method, target)
+}
+
+/// [`request`] with `host` in the `Host` header.
+fn request_as(url: &str, host: &str, method: &str, target: &str) -> (u16, Vec<u8>) {
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = TcpStream::connect(addr).unwrap();
     write!(
         s,
         "{method} {target} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
@@ -124,6 +127,17 @@ fn view_serve_refuses_dotdot_absolute_and_unlisted_paths() {
     assert!(!String::from_utf8_lossy(&page).contains("secret.txt"));
     let (code, _) = request(&srv.url, "POST", "/");
     assert_eq!(code, 405);
+    // DNS rebinding: a page of another name that resolves to 127.0.0.1 is not served.
+    let port = srv.url.trim_end_matches('/').rsplit(':').next().unwrap();
+    let (code, body) = request_as(
+        &srv.url,
+        &format!("evil.example:{port}"),
+        "GET",
+        "/cornell.glb",
+    );
+    assert_eq!(code, 421, "{}", String::from_utf8_lossy(&body));
+    let (code, _) = request_as(&srv.url, &format!("localhost:{port}"), "GET", "/");
+    assert_eq!(code, 200);
 }
 
 #[test]

@@ -3,7 +3,10 @@
 //! (`/NAME.glb`), both held in memory; the file system is never read by request. Paths that
 //! climb (`..`, also percent-encoded), hold a backslash or NUL, or are not origin paths
 //! (`//host/…`, `http://…`) are refused (403); every other path is 404; methods other than
-//! GET and HEAD get 405. The default address is 127.0.0.1 with a port the system chooses.
+//! GET and HEAD get 405. The default address is 127.0.0.1 with a port the system chooses. On a
+//! loopback address a request must name a loopback host (`localhost`, `127.x.y.z`, `[::1]`)
+//! with the bound port in its `Host` header (421 otherwise), so that a web page whose name
+//! is made to resolve to 127.0.0.1 (DNS rebinding) cannot read the solution.
 
 use std::net::SocketAddr;
 
@@ -77,6 +80,30 @@ pub fn route(target: &str, glb_name: &str) -> Route {
     }
 }
 
+/// The `Host` header `host` may reach a server bound to `bound`: any host on a non-loopback
+/// address; on a loopback one, a loopback name with the bound port.
+pub fn host_allowed(host: Option<&str>, bound: SocketAddr) -> bool {
+    if !bound.ip().is_loopback() {
+        return true;
+    }
+    let Some(host) = host.map(str::trim) else {
+        return false;
+    };
+    let (name, port) = match host.rsplit_once(':') {
+        Some((n, p)) if !n.is_empty() && (!n.contains(':') || n.ends_with(']')) => (n, p),
+        _ => return false,
+    };
+    if port.parse::<u16>() != Ok(bound.port()) {
+        return false;
+    }
+    let name = name.to_ascii_lowercase();
+    name == "localhost"
+        || name == "[::1]"
+        || name
+            .parse::<std::net::Ipv4Addr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
 fn header(name: &str, value: &str) -> tiny_http::Header {
     tiny_http::Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("ASCII header")
 }
@@ -101,7 +128,15 @@ pub fn serve(addr: SocketAddr, html: String, glb: Vec<u8>, glb_name: &str) -> an
         let method = req.method().clone();
         let route = route(req.url(), glb_name);
         tracing::info!("{method} {} -> {route:?}", req.url());
+        let host = req
+            .headers()
+            .iter()
+            .find(|h| h.field.equiv("Host"))
+            .map(|h| h.value.as_str().to_string());
         let (code, body, ctype): (u16, &[u8], &str) = match (&method, route) {
+            _ if !host_allowed(host.as_deref(), bound) => {
+                (421, b"421 not a loopback host\n", "text/plain")
+            }
             (tiny_http::Method::Get | tiny_http::Method::Head, Route::Page) => {
                 (200, html.as_bytes(), "text/html; charset=utf-8")
             }
@@ -160,6 +195,31 @@ mod tests {
         for missing in ["/etc/passwd", "/Cargo.toml", "/solution.glb/", "/index.htm"] {
             assert_eq!(r(missing), Route::NotFound, "{missing}");
         }
+    }
+
+    #[test]
+    fn loopback_servers_answer_loopback_hosts_only() {
+        let lo: SocketAddr = "127.0.0.1:8000".parse().unwrap();
+        for ok in [
+            "127.0.0.1:8000",
+            "localhost:8000",
+            "LOCALHOST:8000",
+            "[::1]:8000",
+        ] {
+            assert!(host_allowed(Some(ok), lo), "{ok}");
+        }
+        for bad in [
+            None,
+            Some("evil.example:8000"),
+            Some("127.0.0.1"),
+            Some("127.0.0.1:8001"),
+            Some("localhost.evil.example:8000"),
+            Some(":8000"),
+        ] {
+            assert!(!host_allowed(bad, lo), "{bad:?}");
+        }
+        let any: SocketAddr = "0.0.0.0:8000".parse().unwrap();
+        assert!(host_allowed(Some("viewer.lab:8000"), any));
     }
 
     #[test]
