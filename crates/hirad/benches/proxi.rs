@@ -60,6 +60,9 @@ fn prims_from(tris: &[[Vec3; 3]]) -> Prims {
             .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
             .collect(),
         object: vec![0; n],
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        material: Vec::new(),
     }
 }
 

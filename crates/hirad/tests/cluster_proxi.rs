@@ -21,6 +21,9 @@ fn prims_of(tris: &[[Vec3; 3]]) -> Prims {
         centroid,
         area,
         object: vec![0; tris.len()],
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        material: Vec::new(),
     }
 }
 

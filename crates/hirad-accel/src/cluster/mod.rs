@@ -39,6 +39,8 @@ pub enum Strategy {
     Proxi,
     /// Binned SAH BVH, the ray-tracing baseline.
     Sah,
+    /// Object reconstruction for polygon soups (issue 23): welded components, proximity above.
+    Objr,
 }
 
 choice!(Strategy, "clustering strategy",
@@ -49,11 +51,12 @@ choice!(Strategy, "clustering strategy",
     TfOct => "tf-oct",
     Proxi => "proxi",
     Sah => "sah",
+    Objr => "objr",
 );
 
 impl Strategy {
     /// Every strategy, in the order tables list them.
-    pub const ALL: [Strategy; 7] = [
+    pub const ALL: [Strategy; 8] = [
         Strategy::Kdt,
         Strategy::Obt,
         Strategy::Okdt,
@@ -61,6 +64,7 @@ impl Strategy {
         Strategy::TfOct,
         Strategy::Proxi,
         Strategy::Sah,
+        Strategy::Objr,
     ];
 
     /// Parse a comma-separated list, `all` meaning every strategy.
@@ -134,6 +138,12 @@ pub struct Prims {
     pub area: Vec<f32>,
     /// Object (group) id per surface, from the file.
     pub object: Vec<u32>,
+    /// Vertex positions indexed by `triangles` (`objr` welds them); empty when unknown.
+    pub positions: Vec<Vec3>,
+    /// Vertex ids of each surface into `positions`; empty when unknown.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material id per surface; empty when unknown (one material).
+    pub material: Vec<u32>,
 }
 
 impl Prims {
@@ -147,6 +157,9 @@ impl Prims {
             centroid,
             area: scene.areas.clone(),
             object: scene.tri_object.clone(),
+            positions: scene.positions.clone(),
+            triangles: scene.triangles.clone(),
+            material: scene.tri_material.clone(),
         }
     }
 
@@ -164,6 +177,11 @@ impl Prims {
                 .map(|&[a, b, c]| hirad_core::geom::triangle_area(a, b, c))
                 .collect(),
             object: vec![0; tris.len()],
+            positions: tris.iter().flatten().copied().collect(),
+            triangles: (0..tris.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect(),
+            material: vec![0; tris.len()],
         }
     }
 
@@ -282,6 +300,7 @@ impl ClusterTree {
             Strategy::TfOct => tf_oct::build(prims, config),
             Strategy::Proxi => proxi::build(prims, config),
             Strategy::Sah => sah::build(prims, config),
+            Strategy::Objr => objr::build(prims, config),
         };
         let tree = ClusterTree::from_build(build, prims.len(), strategy, config.clone());
         debug_assert!(tree.validate(prims).is_ok(), "{:?}", tree.validate(prims));
@@ -425,6 +444,7 @@ impl ClusterTree {
 pub mod dump;
 pub mod kdt;
 mod knn;
+pub mod objr;
 pub mod obt;
 pub mod okdt;
 pub mod okdt_p;

@@ -1,0 +1,638 @@
+//! Strategy `objr` (object reconstruction, issue 23): a hierarchy that follows the objects of a
+//! polygon soup (paper §6). Vertices closer than the weld tolerance ([`WELD_REL`] of the scene
+//! diagonal, at most [`WELD_EDGE_FRACTION`] of the shortest incident edge) are welded; an
+//! *object* is a connected component of the triangles over shared welded edges whose two
+//! triangles have the same material; a *patch* is a part of an object whose neighbouring
+//! normals turn by at most [`CREASE_DEG`]. Clusters, in `spec/clustering.md` terms:
+//! - above the objects, PROXI's bottom-up proximity clusters, built by [`proxi::build_subset`]
+//!   over one box per object (an object of a single triangle is attached as that surface);
+//! - an object is one cluster, split top-down while it holds more than [`LEAF_SURFACES`]
+//!   surfaces: a cluster spanning several patches is split between patches along the principal
+//!   axis of their centroids, a cluster within one patch at the median of its triangles along
+//!   their principal axis (area-weighted). Boxes are tight. Objects are built in parallel and
+//!   appended in object order, so the tree does not depend on the thread count.
+//!
+//! Without vertex data ([`Prims::triangles`] empty) every surface is its own object.
+
+use super::{proxi, BuildNode, BuildTree, ClusterConfig, Prims};
+use glam::{DVec3, Vec3};
+use hirad_core::geom::Aabb;
+use rayon::prelude::*;
+
+/// Weld tolerance as a fraction of the scene's bounding-box diagonal.
+pub const WELD_REL: f32 = 1e-5;
+/// Cap of the weld tolerance as a fraction of the shortest edge at either vertex.
+pub const WELD_EDGE_FRACTION: f32 = 0.1;
+/// Largest angle (degrees) between the normals of two triangles of one patch across an edge.
+pub const CREASE_DEG: f32 = 60.0;
+/// Clusters inside an object with at most this many surfaces are leaves.
+pub const LEAF_SURFACES: usize = 4;
+/// Shared-edge fans larger than this are not compared pairwise for patches (non-manifold).
+const MAX_FAN: usize = 8;
+
+/// The objects and patches `objr` recovers from a soup.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Reconstruction {
+    /// Welded vertex id of every entry of [`Prims::positions`] (dense, by first occurrence).
+    pub vertex: Vec<u32>,
+    /// Number of welded vertices among those the surfaces use.
+    pub num_vertices: usize,
+    /// Object id per surface, numbered by the object's first surface.
+    pub object: Vec<u32>,
+    /// Number of objects.
+    pub num_objects: usize,
+    /// Patch id per surface (patches never span objects), numbered by first surface.
+    pub patch: Vec<u32>,
+    /// Number of patches.
+    pub num_patches: usize,
+}
+
+/// Union-find with path halving; roots are the smallest index of their set.
+struct Dsu(Vec<u32>);
+
+impl Dsu {
+    fn new(n: usize) -> Self {
+        Dsu((0..n as u32).collect())
+    }
+
+    fn find(&mut self, mut i: u32) -> u32 {
+        while self.0[i as usize] != i {
+            let g = self.0[self.0[i as usize] as usize];
+            self.0[i as usize] = g;
+            i = g;
+        }
+        i
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let (a, b) = (self.find(a), self.find(b));
+        if a != b {
+            let (lo, hi) = (a.min(b), a.max(b));
+            self.0[hi as usize] = lo;
+        }
+    }
+
+    /// Dense labels in order of first appearance; returns (labels, count).
+    fn labels(mut self) -> (Vec<u32>, usize) {
+        let n = self.0.len();
+        let mut label = vec![u32::MAX; n];
+        let mut out = vec![0u32; n];
+        let mut next = 0u32;
+        for i in 0..n as u32 {
+            let r = self.find(i) as usize;
+            if label[r] == u32::MAX {
+                label[r] = next;
+                next += 1;
+            }
+            out[i as usize] = label[r];
+        }
+        (out, next as usize)
+    }
+}
+
+/// Weld the vertices used by the surfaces; returns the welded id of every position (unused
+/// positions keep ids of their own) and the number of welded vertices in use.
+fn weld(prims: &Prims) -> (Vec<u32>, usize) {
+    let pos = &prims.positions;
+    let nv = pos.len();
+    // Shortest positive edge at each used vertex; unused vertices stay at infinity.
+    let mut emin = vec![f32::INFINITY; nv];
+    let mut used = vec![false; nv];
+    let mut bounds = Aabb::EMPTY;
+    for t in &prims.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let l = pos[a].distance(pos[b]);
+            if l > 0.0 {
+                emin[a] = emin[a].min(l);
+                emin[b] = emin[b].min(l);
+            }
+            if !used[a] {
+                used[a] = true;
+                bounds.grow(pos[a]);
+            }
+        }
+    }
+    let diag = if bounds.is_empty() {
+        0.0
+    } else {
+        bounds.extent().length()
+    };
+    let tau = WELD_REL * diag;
+    // Cells of edge 2τ: a point within τ (maximum norm) of p lies in p's cell or in the
+    // neighbour on the side of the cell p is nearer to, per axis (8 cells).
+    let cell = if tau > 0.0 && tau.is_finite() {
+        2.0 * tau as f64
+    } else {
+        1.0
+    };
+    let origin = bounds.min;
+    let q = |p: Vec3| -> [i64; 3] {
+        let f = |x: f32, o: f32| (((x - o) as f64 / cell).floor()).clamp(0.0, 2e6) as i64;
+        [f(p.x, origin.x), f(p.y, origin.y), f(p.z, origin.z)]
+    };
+    let key =
+        |c: [i64; 3]| -> u64 { (c[0] as u64) | ((c[1] as u64) << 21) | ((c[2] as u64) << 42) };
+    // Used vertices sorted by (cell, exact position, id): exact duplicates are adjacent.
+    let mut order: Vec<(u64, [u32; 3], u32)> = (0..nv as u32)
+        .into_par_iter()
+        .filter(|&v| used[v as usize])
+        .map(|v| {
+            let p = pos[v as usize];
+            (key(q(p)), p.to_array().map(f32::to_bits), v)
+        })
+        .collect();
+    order.par_sort_unstable();
+    let mut dsu = Dsu::new(nv);
+    // Unique positions: (cell key, representative vertex, smallest edge of the group).
+    let mut uniq: Vec<(u64, u32, f32)> = Vec::new();
+    for w in 0..order.len() {
+        let (k, bits, v) = order[w];
+        match uniq.last_mut() {
+            Some(u) if w > 0 && order[w - 1].0 == k && order[w - 1].1 == bits => {
+                dsu.union(u.1, v);
+                u.2 = u.2.min(emin[v as usize]);
+            }
+            _ => uniq.push((k, v, emin[v as usize])),
+        }
+    }
+    if tau > 0.0 && tau.is_finite() {
+        let keys: Vec<u64> = uniq.iter().map(|u| u.0).collect();
+        let pairs: Vec<(u32, u32)> = (0..uniq.len())
+            .into_par_iter()
+            .flat_map_iter(|i| {
+                let (_, v, e) = uniq[i];
+                let p = pos[v as usize];
+                let c = q(p);
+                let mut side = [0i64; 3];
+                for a in 0..3 {
+                    let frac = (p[a] - origin[a]) as f64 / cell - c[a] as f64;
+                    side[a] = if frac >= 0.5 { 1 } else { -1 };
+                }
+                let mut found = Vec::new();
+                for m in 0..8 {
+                    let mut nc = c;
+                    for (a, s) in side.iter().enumerate() {
+                        if m & (1 << a) != 0 {
+                            nc[a] += s;
+                        }
+                    }
+                    if nc.iter().any(|&x| x < 0) {
+                        continue;
+                    }
+                    let k = key(nc);
+                    let start = keys.partition_point(|&x| x < k);
+                    for (j, u) in uniq.iter().enumerate().skip(start) {
+                        if u.0 != k {
+                            break;
+                        }
+                        if j <= i {
+                            continue;
+                        }
+                        let tol = tau.min(WELD_EDGE_FRACTION * e.min(u.2));
+                        if p.distance(pos[u.1 as usize]) <= tol {
+                            found.push((v, u.1));
+                        }
+                    }
+                }
+                found
+            })
+            .collect();
+        for (a, b) in pairs {
+            dsu.union(a, b);
+        }
+    }
+    let (mut labels, _) = dsu.labels();
+    // Dense ids over the used vertices only, by first occurrence in position order.
+    let mut remap = vec![u32::MAX; nv];
+    let mut count = 0u32;
+    for v in 0..nv {
+        if used[v] {
+            let l = labels[v] as usize;
+            if remap[l] == u32::MAX {
+                remap[l] = count;
+                count += 1;
+            }
+        }
+    }
+    let mut extra = count;
+    for v in 0..nv {
+        labels[v] = if used[v] {
+            remap[labels[v] as usize]
+        } else {
+            extra += 1;
+            extra - 1
+        };
+    }
+    (labels, count as usize)
+}
+
+/// Recover the objects and patches of a soup (see the module docs).
+pub fn reconstruct(prims: &Prims) -> Reconstruction {
+    let n = prims.len();
+    if prims.triangles.len() != n || n == 0 {
+        let ids: Vec<u32> = (0..n as u32).collect();
+        return Reconstruction {
+            vertex: Vec::new(),
+            num_vertices: 0,
+            object: ids.clone(),
+            num_objects: n,
+            patch: ids,
+            num_patches: n,
+        };
+    }
+    let (vertex, num_vertices) = weld(prims);
+    let pos = &prims.positions;
+    let mat = |t: usize| prims.material.get(t).copied().unwrap_or(0);
+    let normal: Vec<Vec3> = prims
+        .triangles
+        .par_iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| pos[v as usize]);
+            (b - a).cross(c - a).normalize_or_zero()
+        })
+        .collect();
+    // Welded edges: (min id, max id) key, triangle, and whether it runs min → max.
+    let mut edges: Vec<(u64, u32, bool)> = prims
+        .triangles
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(t, tri)| {
+            let w = tri.map(|v| vertex[v as usize]);
+            (0..3).filter_map(move |k| {
+                let (a, b) = (w[k], w[(k + 1) % 3]);
+                (a != b).then(|| {
+                    let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+                    (key, t as u32, a < b)
+                })
+            })
+        })
+        .collect();
+    edges.par_sort_unstable();
+    let cos_crease = CREASE_DEG.to_radians().cos();
+    let mut objects = Dsu::new(n);
+    let mut patches = Dsu::new(n);
+    let mut start = 0;
+    while start < edges.len() {
+        let mut end = start + 1;
+        while end < edges.len() && edges[end].0 == edges[start].0 {
+            end += 1;
+        }
+        let fan = &edges[start..end];
+        for (i, &(_, ti, di)) in fan.iter().enumerate() {
+            // Objects: join the first triangle of the fan with the same material.
+            if let Some(&(_, tj, _)) = fan[..i]
+                .iter()
+                .find(|e| mat(e.1 as usize) == mat(ti as usize))
+            {
+                objects.union(ti, tj);
+            }
+            if fan.len() > MAX_FAN {
+                continue;
+            }
+            for &(_, tj, dj) in &fan[..i] {
+                if mat(tj as usize) != mat(ti as usize) {
+                    continue;
+                }
+                // Consistent winding traverses the edge in opposite directions.
+                let sign = if di != dj { 1.0 } else { -1.0 };
+                let c = sign * normal[ti as usize].dot(normal[tj as usize]);
+                if c >= cos_crease {
+                    patches.union(ti, tj);
+                }
+            }
+        }
+        start = end;
+    }
+    let (object, num_objects) = objects.labels();
+    let (patch, num_patches) = patches.labels();
+    Reconstruction {
+        vertex,
+        num_vertices,
+        object,
+        num_objects,
+        patch,
+        num_patches,
+    }
+}
+
+/// One surface inside an object's top-down build.
+#[derive(Clone, Copy, Debug)]
+struct Item {
+    id: u32,
+    patch: u32,
+    c: Vec3,
+    w: f64,
+    bbox: Aabb,
+}
+
+/// Principal axis of weighted points (power iteration on the covariance); falls back to the
+/// longest axis of their box when the spread is zero.
+fn principal_axis(pts: impl Iterator<Item = (Vec3, f64)> + Clone) -> DVec3 {
+    let (mut sw, mut mean) = (0.0f64, DVec3::ZERO);
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for (p, w) in pts.clone() {
+        let p = p.as_dvec3();
+        sw += w;
+        mean += p * w;
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let ext = hi - lo;
+    let fallback = if ext.x >= ext.y && ext.x >= ext.z {
+        DVec3::X
+    } else if ext.y >= ext.z {
+        DVec3::Y
+    } else {
+        DVec3::Z
+    };
+    if !(sw > 0.0) {
+        return fallback;
+    }
+    mean /= sw;
+    let mut m = [[0.0f64; 3]; 3];
+    for (p, w) in pts {
+        let d = p.as_dvec3() - mean;
+        for (r, row) in m.iter_mut().enumerate() {
+            for (c, x) in row.iter_mut().enumerate() {
+                *x += w * d[r] * d[c];
+            }
+        }
+    }
+    let mul = |v: DVec3| {
+        DVec3::new(
+            m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
+            m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z,
+        )
+    };
+    let mut v = fallback;
+    for _ in 0..32 {
+        let next = mul(v);
+        let len = next.length();
+        if !(len > 1e-300) || !len.is_finite() {
+            return fallback;
+        }
+        v = next / len;
+    }
+    v
+}
+
+fn leaf_box(items: &[Item]) -> Aabb {
+    let mut b = Aabb::EMPTY;
+    for it in items {
+        b.grow_box(&it.bbox);
+    }
+    b
+}
+
+/// Build the subtree of an object's items into `out` (children before parents); returns the
+/// root id.
+fn build_object(
+    items: &mut [Item],
+    depth: usize,
+    max_depth: usize,
+    out: &mut Vec<BuildNode>,
+) -> u32 {
+    let bbox = leaf_box(items);
+    if items.len() <= LEAF_SURFACES || depth >= max_depth {
+        out.push(BuildNode {
+            bbox,
+            children: Vec::new(),
+            surfaces: items.iter().map(|it| it.id).collect(),
+        });
+        return (out.len() - 1) as u32;
+    }
+    let mid = if items.iter().any(|it| it.patch != items[0].patch) {
+        split_patches(items)
+    } else {
+        let axis = principal_axis(items.iter().map(|it| (it.c, it.w)));
+        let mid = items.len() / 2;
+        let proj = |it: &Item| it.c.as_dvec3().dot(axis);
+        items.select_nth_unstable_by(mid, |a, b| {
+            proj(a).total_cmp(&proj(b)).then(a.id.cmp(&b.id))
+        });
+        mid
+    };
+    let (l, r) = items.split_at_mut(mid);
+    let a = build_object(l, depth + 1, max_depth, out);
+    let b = build_object(r, depth + 1, max_depth, out);
+    out.push(BuildNode {
+        bbox,
+        children: vec![a, b],
+        surfaces: Vec::new(),
+    });
+    (out.len() - 1) as u32
+}
+
+/// Reorder items spanning several patches into two groups of whole patches; returns the size
+/// of the first. Patches are ordered along the principal axis of their centroids and cut where
+/// half the triangles are reached; a patch holding half the triangles or more is cut off alone.
+fn split_patches(items: &mut [Item]) -> usize {
+    items.sort_unstable_by_key(|it| (it.patch, it.id));
+    // (centroid, weight, start, end) per patch.
+    let mut groups: Vec<(Vec3, f64, usize, usize)> = Vec::new();
+    let mut s = 0;
+    while s < items.len() {
+        let mut e = s + 1;
+        while e < items.len() && items[e].patch == items[s].patch {
+            e += 1;
+        }
+        let (mut c, mut w) = (DVec3::ZERO, 0.0);
+        for it in &items[s..e] {
+            c += it.c.as_dvec3() * it.w;
+            w += it.w;
+        }
+        let c = if w > 0.0 {
+            (c / w).as_vec3()
+        } else {
+            leaf_box(&items[s..e]).center()
+        };
+        groups.push((c, w, s, e));
+        s = e;
+    }
+    let n = items.len();
+    let order: Vec<usize> = if let Some(big) = groups.iter().position(|g| 2 * (g.3 - g.2) >= n) {
+        std::iter::once(big)
+            .chain((0..groups.len()).filter(|&g| g != big))
+            .collect()
+    } else {
+        let axis = principal_axis(groups.iter().map(|g| (g.0, g.1.max(1e-30))));
+        let mut o: Vec<usize> = (0..groups.len()).collect();
+        let proj = |g: usize| groups[g].0.as_dvec3().dot(axis);
+        o.sort_by(|&a, &b| proj(a).total_cmp(&proj(b)).then(a.cmp(&b)));
+        o
+    };
+    let mut cut = 0;
+    let mut first = 0;
+    for (k, &g) in order.iter().enumerate() {
+        cut += groups[g].3 - groups[g].2;
+        first = k + 1;
+        if 2 * cut >= n {
+            break;
+        }
+    }
+    let first = first.min(groups.len() - 1).max(1);
+    let mut reordered = Vec::with_capacity(n);
+    let mut size = 0;
+    for (k, &g) in order.iter().enumerate() {
+        reordered.extend_from_slice(&items[groups[g].2..groups[g].3]);
+        if k + 1 == first {
+            size = reordered.len();
+        }
+    }
+    items.copy_from_slice(&reordered);
+    size
+}
+
+/// Build the tree (see the module docs).
+pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
+    let rec = reconstruct(prims);
+    let n = prims.len();
+    // Surfaces grouped by object, in id order within each.
+    let mut first = vec![0usize; rec.num_objects + 1];
+    for &o in &rec.object {
+        first[o as usize + 1] += 1;
+    }
+    for i in 0..rec.num_objects {
+        first[i + 1] += first[i];
+    }
+    let mut fill = first.clone();
+    let mut by_object = vec![0u32; n];
+    for (s, &o) in rec.object.iter().enumerate() {
+        by_object[fill[o as usize]] = s as u32;
+        fill[o as usize] += 1;
+    }
+    let max_depth = cfg.max_depth.max(1);
+    let subtrees: Vec<(Vec<BuildNode>, u32, Aabb, f32)> = (0..rec.num_objects)
+        .into_par_iter()
+        .map(|o| {
+            let surf = &by_object[first[o]..first[o + 1]];
+            let mut items: Vec<Item> = surf
+                .iter()
+                .map(|&s| Item {
+                    id: s,
+                    patch: rec.patch[s as usize],
+                    c: prims.centroid[s as usize],
+                    w: (prims.area[s as usize] as f64).max(0.0) + 1e-30,
+                    bbox: prims.bbox[s as usize],
+                })
+                .collect();
+            let area: f32 = surf.iter().map(|&s| prims.area[s as usize]).sum();
+            if items.len() == 1 {
+                return (Vec::new(), u32::MAX, items[0].bbox, area);
+            }
+            let mut out = Vec::new();
+            let root = build_object(&mut items, 0, max_depth, &mut out);
+            let bbox = out[root as usize].bbox;
+            (out, root, bbox, area)
+        })
+        .collect();
+    let mut t = BuildTree::default();
+    let mut object_root = Vec::with_capacity(subtrees.len());
+    let mut obj_prims = Prims {
+        bbox: Vec::with_capacity(subtrees.len()),
+        centroid: Vec::with_capacity(subtrees.len()),
+        area: Vec::with_capacity(subtrees.len()),
+        object: vec![0; subtrees.len()],
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        material: Vec::new(),
+    };
+    let mut largest = 0;
+    for (o, (nodes, root, bbox, area)) in subtrees.into_iter().enumerate() {
+        largest = largest.max(first[o + 1] - first[o]);
+        let base = t.nodes.len() as u32;
+        for mut node in nodes {
+            for c in &mut node.children {
+                *c += base;
+            }
+            t.nodes.push(node);
+        }
+        object_root.push(if root == u32::MAX {
+            u32::MAX
+        } else {
+            root + base
+        });
+        obj_prims.bbox.push(bbox);
+        obj_prims.centroid.push(bbox.center());
+        obj_prims.area.push(area);
+    }
+    // Upper hierarchy: PROXI over one box per object.
+    let all: Vec<u32> = (0..rec.num_objects as u32).collect();
+    let mut upper = BuildTree::default();
+    let upper_root = proxi::build_subset(&obj_prims, &all, cfg, &mut upper);
+    let base = t.nodes.len() as u32;
+    for node in upper.nodes {
+        let mut mapped = BuildNode {
+            bbox: node.bbox,
+            children: node.children.iter().map(|&c| c + base).collect(),
+            surfaces: Vec::new(),
+        };
+        for o in node.surfaces {
+            match object_root[o as usize] {
+                u32::MAX => mapped.surfaces.push(by_object[first[o as usize]]),
+                r => mapped.children.push(r),
+            }
+        }
+        t.nodes.push(mapped);
+    }
+    t.root = upper_root + base;
+    // A lone object gives a chain root → object root; start at the object.
+    let r = &t.nodes[t.root as usize];
+    if r.surfaces.is_empty() && r.children.len() == 1 {
+        t.root = r.children[0];
+    }
+    t.notes.push(format!(
+        "objr: {} objects (largest {largest} surfaces), {} patches, {} welded vertices",
+        rec.num_objects, rec.num_patches, rec.num_vertices
+    ));
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn principal_axis_of_a_line() {
+        let pts: Vec<(Vec3, f64)> = (0..10)
+            .map(|i| (Vec3::new(1.0, 2.0, 3.0) * i as f32, 1.0))
+            .collect();
+        let a = principal_axis(pts.iter().copied());
+        let e = DVec3::new(1.0, 2.0, 3.0).normalize();
+        assert!((a.dot(e).abs() - 1.0).abs() < 1e-9, "{a}");
+    }
+
+    #[test]
+    fn dsu_labels_by_first_index() {
+        let mut d = Dsu::new(5);
+        d.union(4, 1);
+        d.union(3, 2);
+        assert_eq!(d.labels(), (vec![0, 1, 2, 2, 1], 3));
+    }
+
+    #[test]
+    fn split_soup_quads_weld_and_crease() {
+        // Two unit squares folded along x = 1 by 90°, each triangle with its own vertices,
+        // the second square nudged by 1e-7 (within the weld tolerance).
+        let v = Vec3::new;
+        let e = 1e-7;
+        let tris = [
+            [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.)],
+            [v(0., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+            [v(1. + e, 0., 0.), v(1., 0., 1.), v(1., 1., 1.)],
+            [v(1., 0., 0.), v(1., 1., 1.), v(1., 1. + e, 0.)],
+        ];
+        let p = Prims::from_triangles(&tris);
+        let r = reconstruct(&p);
+        assert_eq!(r.num_vertices, 6);
+        assert_eq!(r.num_objects, 1);
+        assert_eq!(r.num_patches, 2);
+        assert_eq!(r.patch, vec![0, 0, 1, 1]);
+        // A different material on the second square makes two objects.
+        let mut p2 = p.clone();
+        p2.material = vec![0, 0, 1, 1];
+        assert_eq!(reconstruct(&p2).num_objects, 2);
+    }
+}
