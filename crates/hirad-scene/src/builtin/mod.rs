@@ -2,9 +2,10 @@
 //!
 //! A built-in scene is named `BASE[:SIZE][@SEED]`: `furnace[:N]` and `furnace-sphere[:N]`
 //! (closed white furnaces with an exact answer), `cornell` (the measured Cornell box), `office`
-//! (the paper's OFFICE, +Z up), `soup[:N]` (an industrial hall of about N triangles, shuffled)
-//! and `trees[:N]` (N trees under a sun and a sky); `docs/scene-format.md` lists the sizes.
-//! `@SEED` (decimal) changes the random choices of `office`, `soup` and `trees`; the same name
+//! (the paper's OFFICE, +Z up), `soup[:N]` (an industrial hall of about N triangles, shuffled),
+//! `trees[:N]` (N trees under a sun and a sky) and `objsoup[:N]` (a few tessellated objects in a
+//! room, about N triangles, as a soup); `docs/scene-format.md` lists the sizes. `@SEED`
+//! (decimal) changes the random choices of `office`, `soup`, `trees` and `objsoup`; the same name
 //! always gives the same scene. Each scene has a camera named "default" (first) and usually a
 //! few more viewpoints; the modules document materials, emission values and exposure. Every
 //! generator builds a [`RawScene`] in metres that [`Scene::from_raw`](super::Scene::from_raw)
@@ -13,6 +14,7 @@
 pub mod cornell;
 pub mod furnace;
 pub mod mesh;
+pub mod objsoup;
 pub mod office;
 pub mod soup;
 pub mod trees;
@@ -21,13 +23,14 @@ use super::RawScene;
 use hirad_core::{Error, Result};
 
 /// Names of the built-in scenes (sizes and seeds are appended as `:N` and `@SEED`).
-pub const NAMES: [&str; 6] = [
+pub const NAMES: [&str; 7] = [
     "cornell",
     "office",
     "soup",
     "trees",
     "furnace",
     "furnace-sphere",
+    "objsoup",
 ];
 
 /// Seed used when the name carries no `@SEED`.
@@ -118,6 +121,15 @@ pub fn generate(name: &str) -> Result<Option<RawScene>> {
                 )));
             }
             soup::soup(n, spec.seed)
+        }
+        "objsoup" => {
+            let n = spec.size.unwrap_or(objsoup::DEFAULT_TRIANGLES);
+            if !(500..=5_000_000).contains(&n) {
+                return Err(Error::Config(format!(
+                    "built-in scene '{name}': size {n} outside [500, 5000000]"
+                )));
+            }
+            objsoup::objsoup(n, spec.seed)
         }
         "trees" => trees::trees(size_in(1, 64, trees::DEFAULT_TREES as u64)?, spec.seed),
         _ => return Ok(None),
