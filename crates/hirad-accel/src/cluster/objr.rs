@@ -539,9 +539,7 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         triangles: Vec::new(),
         material: Vec::new(),
     };
-    let mut largest = 0;
-    for (o, (nodes, root, bbox, area)) in subtrees.into_iter().enumerate() {
-        largest = largest.max(first[o + 1] - first[o]);
+    for (nodes, root, bbox, area) in subtrees {
         let base = t.nodes.len() as u32;
         for mut node in nodes {
             for c in &mut node.children {
@@ -583,9 +581,18 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     if r.surfaces.is_empty() && r.children.len() == 1 {
         t.root = r.children[0];
     }
+    let mut sizes: Vec<usize> = (0..rec.num_objects)
+        .map(|o| first[o + 1] - first[o])
+        .collect();
+    sizes.sort_unstable_by(|a, b| b.cmp(a));
+    let lone = sizes.iter().filter(|&&x| x == 1).count();
+    let top: Vec<String> = sizes.iter().take(8).map(|x| x.to_string()).collect();
     t.notes.push(format!(
-        "objr: {} objects (largest {largest} surfaces), {} patches, {} welded vertices",
-        rec.num_objects, rec.num_patches, rec.num_vertices
+        "objr: {} objects (surfaces of the largest: {}; {lone} of one surface), {} patches, {} welded vertices",
+        rec.num_objects,
+        top.join(", "),
+        rec.num_patches,
+        rec.num_vertices
     ));
     t
 }
