@@ -346,7 +346,7 @@ fn principal_axis(pts: impl Iterator<Item = (Vec3, f64)> + Clone) -> DVec3 {
     } else {
         DVec3::Z
     };
-    if !(sw > 0.0) {
+    if sw.is_nan() || sw <= 0.0 {
         return fallback;
     }
     mean /= sw;
@@ -370,7 +370,7 @@ fn principal_axis(pts: impl Iterator<Item = (Vec3, f64)> + Clone) -> DVec3 {
     for _ in 0..32 {
         let next = mul(v);
         let len = next.length();
-        if !(len > 1e-300) || !len.is_finite() {
+        if len.is_nan() || len <= 1e-300 || !len.is_finite() {
             return fallback;
         }
         v = next / len;

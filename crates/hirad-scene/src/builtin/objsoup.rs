@@ -210,7 +210,7 @@ mod tests {
             .enumerate()
             .all(|(i, &v)| v as usize == i));
         assert!(s.tri_object.iter().all(|&o| o == 0));
-        let mut seen = vec![false; NUM_OBJECTS];
+        let mut seen = [false; NUM_OBJECTS];
         for &o in &truth {
             seen[o as usize] = true;
         }
