@@ -2,8 +2,8 @@
 //! polygon soup (paper §6). Vertices closer than the weld tolerance ([`WELD_REL`] of the scene
 //! diagonal, at most [`WELD_EDGE_FRACTION`] of the shortest incident edge) are welded; an
 //! *object* is a connected component of the triangles over shared welded edges whose two
-//! triangles have the same material; a *patch* is a part of an object whose neighbouring
-//! normals turn by at most [`CREASE_DEG`]. Clusters, in `spec/clustering.md` terms:
+//! triangles have the same material; a *patch* is a part of an object joined over edges of two
+//! triangles whose normals turn by at most [`CREASE_DEG`]. Clusters, in `spec/clustering.md` terms:
 //! - above the objects, PROXI's bottom-up proximity clusters, built by [`proxi::build_subset`]
 //!   over one box per object (an object of a single triangle is attached as that surface);
 //! - an object is one cluster, split top-down while it holds more than [`LEAF_SURFACES`]
@@ -27,8 +27,6 @@ pub const WELD_EDGE_FRACTION: f32 = 0.1;
 pub const CREASE_DEG: f32 = 60.0;
 /// Clusters inside an object with at most this many surfaces are leaves.
 pub const LEAF_SURFACES: usize = 4;
-/// Shared-edge fans larger than this are not compared pairwise for patches (non-manifold).
-const MAX_FAN: usize = 8;
 
 /// The objects and patches `objr` recovers from a soup.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -287,7 +285,9 @@ pub fn reconstruct(prims: &Prims) -> Reconstruction {
             {
                 objects.union(ti, tj);
             }
-            if fan.len() > MAX_FAN {
+            // Patches are manifold pieces: an edge of three or more triangles is a junction
+            // (a wall meeting a floor) where the sheets on either side part.
+            if fan.len() != 2 {
                 continue;
             }
             for &(_, tj, dj) in &fan[..i] {
@@ -641,5 +641,14 @@ mod tests {
         let mut p2 = p.clone();
         p2.material = vec![0, 0, 1, 1];
         assert_eq!(reconstruct(&p2).num_objects, 2);
+        // A T-junction: a wall standing on the shared edge of two coplanar floor squares
+        // joins one object, but three patches (no patch continues across the junction).
+        let t = [
+            [v(-1., 0., 0.), v(0., 0., 0.), v(0., 1., 0.)],
+            [v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.)],
+            [v(0., 1., 0.), v(0., 0., 0.), v(0., 0., 1.)],
+        ];
+        let r = reconstruct(&Prims::from_triangles(&t));
+        assert_eq!((r.num_objects, r.num_patches), (1, 3));
     }
 }
