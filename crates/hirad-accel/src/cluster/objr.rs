@@ -2,15 +2,15 @@
 //! polygon soup (paper §6). Vertices closer than the weld tolerance ([`WELD_REL`] of the scene
 //! diagonal, at most [`WELD_EDGE_FRACTION`] of the shortest incident edge) are welded; an
 //! *object* is a connected component of the triangles over shared welded edges whose two
-//! triangles have the same material; a *patch* is a part of an object joined over edges of two
-//! triangles whose normals turn by at most [`CREASE_DEG`]. Clusters, in `spec/clustering.md` terms:
+//! triangles have the same material; a *patch* is a part of an object joined over edges of
+//! two triangles whose normals turn by at most [`CREASE_DEG`]. Clusters (`spec/clustering.md`):
 //! - above the objects, PROXI's bottom-up proximity clusters, built by [`proxi::build_subset`]
 //!   over one box per object (an object of a single triangle is attached as that surface);
 //! - an object is one cluster, split top-down while it holds more than [`LEAF_SURFACES`]
-//!   surfaces: a cluster spanning several patches is split between patches along the principal
-//!   axis of their centroids, a cluster within one patch at the median of its triangles along
-//!   their principal axis (area-weighted). Boxes are tight. Objects are built in parallel and
-//!   appended in object order, so the tree does not depend on the thread count.
+//!   surfaces into [`WIDTH`] children by halving the largest part: a part spanning several
+//!   patches between patches along the principal axis of their centroids, a part within one
+//!   patch at the median of its triangles along their (area-weighted) principal axis. Boxes
+//!   are tight; objects are built in parallel and appended in order (thread-count independent).
 //!
 //! Without vertex data ([`Prims::triangles`] empty) every surface is its own object.
 
@@ -27,6 +27,8 @@ pub const WELD_EDGE_FRACTION: f32 = 0.1;
 pub const CREASE_DEG: f32 = 60.0;
 /// Clusters inside an object with at most this many surfaces are leaves.
 pub const LEAF_SURFACES: usize = 4;
+/// Children of a cluster inside an object (successive halvings).
+pub const WIDTH: usize = 4;
 
 /// The objects and patches `objr` recovers from a soup.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -403,26 +405,48 @@ fn build_object(
         });
         return (out.len() - 1) as u32;
     }
-    let mid = if items.iter().any(|it| it.patch != items[0].patch) {
-        split_patches(items)
-    } else {
-        let axis = principal_axis(items.iter().map(|it| (it.c, it.w)));
-        let mid = items.len() / 2;
-        let proj = |it: &Item| it.c.as_dvec3().dot(axis);
-        items.select_nth_unstable_by(mid, |a, b| {
-            proj(a).total_cmp(&proj(b)).then(a.id.cmp(&b.id))
-        });
-        mid
-    };
-    let (l, r) = items.split_at_mut(mid);
-    let a = build_object(l, depth + 1, max_depth, out);
-    let b = build_object(r, depth + 1, max_depth, out);
+    // Halve the items, then the largest part while it is above the leaf size, up to `WIDTH`
+    // parts: one child cluster per part.
+    let mut parts: Vec<(usize, usize)> = vec![(0, items.len())];
+    while parts.len() < WIDTH {
+        let mut k = 0;
+        for (i, &(s, e)) in parts.iter().enumerate() {
+            if e - s > parts[k].1 - parts[k].0 {
+                k = i;
+            }
+        }
+        let (s, e) = parts[k];
+        if e - s <= LEAF_SURFACES {
+            break;
+        }
+        let mid = s + split(&mut items[s..e]);
+        parts.splice(k..=k, [(s, mid), (mid, e)]);
+    }
+    let children = parts
+        .into_iter()
+        .map(|(s, e)| build_object(&mut items[s..e], depth + 1, max_depth, out))
+        .collect();
     out.push(BuildNode {
         bbox,
-        children: vec![a, b],
+        children,
         surfaces: Vec::new(),
     });
     (out.len() - 1) as u32
+}
+
+/// Reorder `items` into two non-empty groups (see the module docs); returns the size of the
+/// first.
+fn split(items: &mut [Item]) -> usize {
+    if items.iter().any(|it| it.patch != items[0].patch) {
+        return split_patches(items);
+    }
+    let axis = principal_axis(items.iter().map(|it| (it.c, it.w)));
+    let mid = items.len() / 2;
+    let proj = |it: &Item| it.c.as_dvec3().dot(axis);
+    items.select_nth_unstable_by(mid, |a, b| {
+        proj(a).total_cmp(&proj(b)).then(a.id.cmp(&b.id))
+    });
+    mid
 }
 
 /// Reorder items spanning several patches into two groups of whole patches; returns the size
