@@ -26,7 +26,7 @@ fn statistics_of_every_strategy() {
         .collect();
     assert_eq!(
         names,
-        ["kdt", "obt", "okdt", "okdt-p", "tf-oct", "proxi", "sah"]
+        ["kdt", "obt", "okdt", "okdt-p", "tf-oct", "proxi", "sah", "objr"]
     );
     let n = v["triangles"].as_u64().unwrap();
     for r in rows {
