@@ -161,10 +161,10 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
     }
     // Ray casting.
     {
-        // The paper's strategies: every one but the ray-tracing baseline.
+        // The paper's strategies.
         let rows: Vec<&RayRecord> = Strategy::ALL
             .iter()
-            .filter(|&&s| s != Strategy::Sah)
+            .filter(|&&s| s.is_paper())
             .filter_map(|&s| by(&d.rays, s, |r| r.strategy))
             .collect();
         let (ours, rep) = if rows.len() >= 2 {

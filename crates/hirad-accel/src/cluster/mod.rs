@@ -67,6 +67,11 @@ impl Strategy {
         Strategy::Objr,
     ];
 
+    /// One of the paper's six strategies (not the ray-tracing baseline nor hirad's own).
+    pub fn is_paper(self) -> bool {
+        !matches!(self, Strategy::Sah | Strategy::Objr)
+    }
+
     /// Parse a comma-separated list, `all` meaning every strategy.
     pub fn parse_list(s: &str) -> Result<Vec<Strategy>> {
         if s.eq_ignore_ascii_case("all") {

@@ -17,7 +17,7 @@ pub struct Args {
     pub scene: String,
     #[command(flatten)]
     pub load: super::info::LoadArgs,
-    /// Strategies: `all` or a comma-separated list (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah).
+    /// Strategies: `all` or a comma-separated list (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah, objr).
     #[arg(long, default_value = "all")]
     pub clustering: String,
     /// OBT/OKDT/OKDT-P overlap parameter λ ≥ 0 (default 0.25).

@@ -26,7 +26,7 @@ pub struct Args {
     /// Viewpoint of the image (`--up y|z` also sets the scene's up axis).
     #[command(flatten)]
     pub camera: super::image_args::CameraArgs,
-    /// Clustering strategy (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah).
+    /// Clustering strategy (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah, objr).
     #[arg(long, default_value = "proxi")]
     pub clustering: String,
     /// Solver preset the other flags override (fast, default, fine, reference).
