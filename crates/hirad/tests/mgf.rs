@@ -348,6 +348,25 @@ fn two_sided_scene_from_sides() {
         assert_eq!(*b, *n != "one", "{named:?} {backs:?}");
     }
     assert!((0..mixed.num_triangles()).all(|t| mixed.has_back(t, true)));
+    // A scene description keeps each mesh file's sides: the mixed file beside a one-sided OBJ.
+    let obj = "v 0 0 2\nv 1 0 2\nv 0 1 2\nf 1 2 3\n";
+    let toml = "[[mesh]]\nfile = \"t.mgf\"\n[[mesh]]\nfile = \"o.obj\"\n";
+    let dir = files(&[
+        ("t.mgf", &format!("{QUAD}f a b c\n{one}")),
+        ("o.obj", obj),
+        ("s.toml", toml),
+    ]);
+    let desc = Scene::load(
+        dir.path().join("s.toml").to_str().unwrap(),
+        &SceneOptions::default(),
+    )
+    .unwrap();
+    assert!(!desc.two_sided);
+    let sides: Vec<(String, bool)> = (0..desc.num_triangles())
+        .map(|t| (desc.material_of(t).name.clone(), desc.has_back(t, false)))
+        .collect();
+    assert_eq!(sides.iter().filter(|s| s.1).count(), 1, "{sides:?}");
+    assert!(sides.iter().all(|(n, b)| *b == (n == "white")), "{sides:?}");
     // Built-in and OBJ scenes are one-sided unless asked.
     assert!(
         !Scene::load("cornell", &SceneOptions::default())
