@@ -26,6 +26,8 @@ pub struct Visibility<'a> {
     volume: Option<VolumeCaster<'a>>,
     /// Volume mode: clusters smaller than `vol_ratio × segment length` act as volumes.
     pub vol_ratio: f32,
+    /// Rounding scale of the scene's coordinates ([`Visibility::eps`]).
+    eps: f32,
 }
 
 impl<'a> Visibility<'a> {
@@ -43,6 +45,10 @@ impl<'a> Visibility<'a> {
             order: subtree_ranks(tree),
             volume: (mode == VisibilityMode::Volume).then(|| VolumeCaster::new(scene, tree)),
             vol_ratio,
+            eps: {
+                let c = scene.bbox.min.abs().max(scene.bbox.max.abs()).max_element();
+                EPS_REL * if c.is_finite() { c.max(1e-6) } else { 1.0 }
+            },
         })
     }
 
@@ -51,6 +57,27 @@ impl<'a> Visibility<'a> {
         self.caster.memory_bytes()
             + self.order.capacity() * 8
             + self.volume.as_ref().map_or(0, |v| v.memory_bytes())
+    }
+
+    /// Rounding scale of the scene's coordinates (a length, [`EPS_REL`] of the largest):
+    /// shadow rays leave this much out at each end, for the rounding of their end points.
+    pub fn eps(&self) -> f32 {
+        self.eps
+    }
+
+    /// How far from their triangle's edges sample points stay: well beyond what a shadow
+    /// ray leaves out at its ends, so that a surface meeting the triangle at an edge is
+    /// never inside that left-out stretch.
+    pub fn margin(&self) -> f32 {
+        4.0 * self.eps
+    }
+
+    /// [`Visibility::transmittance`] of the segment between two sample points, all of it but
+    /// [`Visibility::eps`] at each end.
+    #[inline]
+    pub fn between(&self, x: Vec3, y: Vec3, a: Endpoint, b: Endpoint) -> f64 {
+        let t = (self.eps / (y - x).length().max(f32::MIN_POSITIVE)).min(0.25);
+        self.transmittance(x, y, t, 1.0 - t, a, b)
     }
 
     /// The mode in use.
@@ -106,15 +133,16 @@ impl<'a> Visibility<'a> {
     /// Fraction of a distant light (sun, sky direction `dir`, unit length) reaching `origin` on
     /// surface `tri`: 0 or 1 with rays; with volumes, the transmittance of the segment from
     /// `origin` to where it leaves the scene (twice the scene's diagonal away), the surface
-    /// itself excluded — so that sun shadows, too, are volumetric (paper Fig. 5).
+    /// itself excluded — so that sun shadows, too, are volumetric (paper Fig. 5). The ray
+    /// leaves out [`Visibility::eps`] at its start.
     #[inline]
-    pub fn open_to_infinity(&self, origin: Vec3, dir: Vec3, tmin: f32, tri: u32) -> f64 {
+    pub fn open_to_infinity(&self, origin: Vec3, dir: Vec3, tri: u32) -> f64 {
         match (self.mode, &self.volume) {
             (VisibilityMode::None, _) => 1.0,
             (VisibilityMode::Volume, Some(v)) => {
                 let root = v.tree.nodes.first().map(|n| n.bbox.size()).unwrap_or(0.0);
                 let far = origin + dir * (2.0 * root * 3f32.sqrt() + 1.0);
-                let start = origin + dir * tmin;
+                let start = origin + dir * self.eps;
                 v.transmittance(
                     start,
                     far,
@@ -124,7 +152,10 @@ impl<'a> Visibility<'a> {
                 ) as f64
             }
             _ => {
-                if self.caster.occluded(origin, dir, tmin, f32::MAX) {
+                if self
+                    .caster
+                    .occluded_except(origin, dir, (self.eps, f32::MAX), &|t| t == tri)
+                {
                     0.0
                 } else {
                     1.0
@@ -133,6 +164,9 @@ impl<'a> Visibility<'a> {
         }
     }
 }
+
+/// [`Visibility::eps`] over the largest coordinate: 8 units in the last place of an `f32`.
+const EPS_REL: f32 = 1e-6;
 
 /// Depth-first pre-order rank of every node and the rank just past its subtree.
 fn subtree_ranks(tree: &ClusterTree) -> Vec<(u32, u32)> {

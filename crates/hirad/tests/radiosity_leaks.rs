@@ -198,23 +198,18 @@ fn mode_name(m: Mode) -> String {
     format!("{}/{}/{}", m.vis.name(), m.emission.name(), m.refine.name())
 }
 
-/// Leaks not fixed yet, about 2–3× the largest value measured (2026-12-02): volume visibility
-/// lets a little light through walls (≤ 6.8e-6); proxi's clusters that straddle a dividing
-/// wall hand out what some of their surfaces receive to all of them (≤ 2.0e-4), and objr's
-/// upper clusters, PROXI's over objects, do the same with the clutter of cell_across_wall
-/// (≤ 2.9e-5, 2026-12-04); the lamp in a closed box ≤ 6.2e-9, 2.1e-8 (obt, rays, bf) since unresolved links that could split
-/// below the minimum area draw their kernel twice (2026-12-03). (The isotropic facing_away and sah cell_across_wall leaks listed
-/// on 2026-12-01 measure 0 now.)
+/// Leaks not fixed yet, about 2–4× the largest value measured (2026-12-04): volume visibility
+/// lets a little light through walls (≤ 1.0e-5); objr's upper clusters, PROXI's over objects,
+/// straddle the wall of cell_across_wall, and when none of a link's few samples lands on a
+/// small surface behind it, the cluster hands that surface its share (≤ 2.7e-7 with rays).
+/// (A cluster link whose rays disagree now splits its cluster receiver, or its isotropic
+/// cluster source, and sample points keep a margin from their triangle's edges: proxi's
+/// straddling clusters, a floor lit through the foot of a wall and the lamp in a closed box
+/// measure 0 with rays.)
 fn known_leak(scene: &str, strategy: Strategy, m: Mode) -> f64 {
     let mut bound: f64 = 1e-9;
-    if matches!(scene, "t_junction" | "cell_across_wall") && strategy == Strategy::Proxi {
-        bound = bound.max(5e-4);
-    }
     if scene == "cell_across_wall" && strategy == Strategy::Objr {
-        bound = bound.max(1e-4);
-    }
-    if scene == "lamp_in_box" {
-        bound = bound.max(4e-8);
+        bound = bound.max(1e-6);
     }
     if m.vis == VisibilityMode::Volume {
         bound = bound.max(2e-5);

@@ -11,7 +11,7 @@
 
 use super::analytic::{point_to_disk, point_to_polygon};
 use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
-use super::sampling::{sample_triangle, sample_triangle_above, stratified_2d};
+use super::sampling::{sample_triangle_above, sample_triangle_inset, stratified_2d};
 use crate::cluster_model::{self, ClusterOrient};
 use crate::config::{ClusterEmission, Reception};
 use crate::element::{quad_path, Elements, Kind};
@@ -384,7 +384,7 @@ impl KernelCtx<'_> {
             // the form factor of the cluster's contents; an isotropic one stays at its centre.
             let mut member = NO_MEMBER;
             let (y, ny) = match sj {
-                End::Surface { v, n, .. } => (sample_triangle(&v, sv[s][0], sv[s][1]), n),
+                End::Surface { v, n, .. } => (self.point_on(&v, sv[s][0], sv[s][1]), n),
                 End::Cluster { node, .. } => {
                     let (y, n, k) = self.sample_cluster(node, sv[s][0], sv[s][1]);
                     member = k;
@@ -421,7 +421,7 @@ impl KernelCtx<'_> {
             };
             let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
                 (End::Surface { v, n: nr, .. }, _) => {
-                    let x = sample_triangle(&v, su[s][0], su[s][1]);
+                    let x = self.point_on(&v, su[s][0], su[s][1]);
                     (x, self.sample_kernel(x, nr, &src, member), Some(nr))
                 }
                 (End::Cluster { .. }, Some(cdf)) => {
@@ -434,7 +434,7 @@ impl KernelCtx<'_> {
                     let (id, hi, w) = cdf[i];
                     let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
                     let e = &self.elems.elems[id as usize];
-                    let x = sample_triangle(&e.verts, u as f32, su[s][1]);
+                    let x = self.point_on(&e.verts, u as f32, su[s][1]);
                     let fx = self.sample_kernel(x, e.normal, &src, member) / w;
                     ex = Endpoint::Surface(e.tri);
                     (x, fx, Some(e.normal))
@@ -456,7 +456,8 @@ impl KernelCtx<'_> {
             // hidden, e.g. from inside a thin slab to a desk the slab stands on).
             let y = match (sj, nx) {
                 (End::Surface { v, .. }, Some(nr)) => {
-                    sample_triangle_above(x, nr, &v, sv[s][0], sv[s][1]).unwrap_or(y)
+                    sample_triangle_above(x, nr, &v, (sv[s][0], sv[s][1]), self.vis.margin())
+                        .unwrap_or(y)
                 }
                 (
                     End::Cluster {
@@ -465,7 +466,8 @@ impl KernelCtx<'_> {
                     Some(nr),
                 ) if member != NO_MEMBER => {
                     let v = self.elems.elems[member as usize].verts;
-                    sample_triangle_above(x, nr, &v, sv[s][1], sv[s][0]).unwrap_or(y)
+                    sample_triangle_above(x, nr, &v, (sv[s][1], sv[s][0]), self.vis.margin())
+                        .unwrap_or(y)
                 }
                 _ => y,
             };
@@ -567,7 +569,7 @@ impl KernelCtx<'_> {
             let e = &el.elems[id as usize];
             if e.kind == Kind::Surface || e.num_children == 0 {
                 return if e.kind == Kind::Surface {
-                    (sample_triangle(&e.verts, u as f32, v), e.normal, id)
+                    (self.point_on(&e.verts, u as f32, v), e.normal, id)
                 } else {
                     (e.centroid, Vec3::ZERO, NO_MEMBER)
                 };
@@ -605,7 +607,14 @@ impl KernelCtx<'_> {
 
     /// Visibility of the segment x → y: every surface but the ends `a` and `b` can occlude.
     pub(super) fn segment(&self, x: Vec3, a: Endpoint, y: Vec3, b: Endpoint) -> f64 {
-        self.vis.transmittance(x, y, SEG_EPS, 1.0 - SEG_EPS, a, b)
+        self.vis.between(x, y, a, b)
+    }
+
+    /// A sample point of triangle `v` from two numbers in [0, 1), away from its edges by
+    /// the visibility's [`Visibility::margin`].
+    #[inline]
+    pub(super) fn point_on(&self, v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
+        sample_triangle_inset(v, u1, u2, self.vis.margin())
     }
 }
 
@@ -617,7 +626,3 @@ pub(super) type Samples = SmallVec<[[f32; 2]; INLINE]>;
 
 /// [`KernelCtx::sample_cluster`] found no surface.
 pub(crate) const NO_MEMBER: u32 = crate::link::NO_MEMBER;
-
-/// Shadow segments start and end this fraction of their length from their end points: the
-/// ends' own surfaces are left out by id, so this only absorbs rounding of the sample points.
-const SEG_EPS: f32 = 1e-6;

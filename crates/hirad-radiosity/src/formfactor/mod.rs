@@ -17,7 +17,9 @@ pub mod sampling;
 
 pub use self::analytic::{angle_from, parallel_disk_exact, point_to_disk, point_to_polygon};
 pub use self::kernel::{KernelCtx, KernelEval};
-pub use self::sampling::{jittered_grid, sample_triangle, sample_triangle_above, stratified_2d};
+pub use self::sampling::{
+    jittered_grid, sample_triangle, sample_triangle_above, sample_triangle_inset, stratified_2d,
+};
 pub use crate::cluster_model::SH2_ERROR;
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! cluster end closer than its size are judged on a geometric bound of their kernel.
 
 use super::kernel::{deposit_at, End, KernelEval, Samples, INLINE};
-use super::sampling::{jittered_grid, sample_triangle, sample_triangle_above, stratified_2d};
+use super::sampling::{jittered_grid, sample_triangle_above, stratified_2d};
 use super::KernelCtx;
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
@@ -98,10 +98,8 @@ impl KernelCtx<'_> {
         let m = k * k;
         let mut pts: SmallVec<[[f32; 2]; NEAR_FIELD_MAX]> = SmallVec::new();
         jittered_grid(k, rng, &mut pts);
-        let xs: SmallVec<[Vec3; NEAR_FIELD_MAX]> = pts
-            .iter()
-            .map(|u| sample_triangle(&gv, u[0], u[1]))
-            .collect();
+        let xs: SmallVec<[Vec3; NEAR_FIELD_MAX]> =
+            pts.iter().map(|u| self.point_on(&gv, u[0], u[1])).collect();
         let other = End::Surface {
             v: ov,
             n: on,
@@ -142,8 +140,8 @@ impl KernelCtx<'_> {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
             let x = xs[cdf.partition_point(|&c| c <= target).min(m - 1)];
-            let y = sample_triangle_above(x, gn, &ov, u[0], u[1])
-                .unwrap_or_else(|| sample_triangle(&ov, u[0], u[1]));
+            let y = sample_triangle_above(x, gn, &ov, (u[0], u[1]), self.vis.margin())
+                .unwrap_or_else(|| self.point_on(&ov, u[0], u[1]));
             let vis = if self.covered(oe, on, y) {
                 0.0
             } else {

@@ -8,11 +8,18 @@ use hirad_core::rng::SplitMix64;
 /// Area-uniform point, from two uniform numbers in [0, 1), of the part of triangle `v` that
 /// lies above the plane through `x` with normal `n`; `None` when no part of it does. A shadow
 /// ray from `x` is aimed at the part of the source that its kernel counts.
-pub fn sample_triangle_above(x: Vec3, n: Vec3, v: &[Vec3; 3], u1: f32, u2: f32) -> Option<Vec3> {
+/// Points keep `margin` from the triangle's edges ([`sample_triangle_inset`]).
+pub fn sample_triangle_above(
+    x: Vec3,
+    n: Vec3,
+    v: &[Vec3; 3],
+    (u1, u2): (f32, f32),
+    margin: f32,
+) -> Option<Vec3> {
     let xd = x.as_dvec3();
     let nd = n.as_dvec3();
     if v.iter().all(|p| nd.dot(p.as_dvec3() - xd) >= 0.0) {
-        return Some(sample_triangle(v, u1, u2));
+        return Some(sample_triangle_inset(v, u1, u2, margin));
     }
     let mut c = [DVec3::ZERO; 16];
     let m = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()), &mut c);
@@ -35,7 +42,7 @@ pub fn sample_triangle_above(x: Vec3, n: Vec3, v: &[Vec3; 3], u1: f32, u2: f32) 
     }
     let u = (target / areas[i].max(1e-300)).clamp(0.0, 0.999_999_9) as f32;
     let t = [c[0], c[i + 1], c[i + 2]].map(|p| p.as_vec3());
-    Some(sample_triangle(&t, u, u2))
+    Some(sample_triangle_inset(&t, u, u2, margin))
 }
 
 /// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).
@@ -47,6 +54,42 @@ pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
     let b2 = s * u2;
     v[0] * b0 + v[1] * b1 + v[2] * b2
 }
+
+/// [`sample_triangle`] kept `margin` (a length) away from the triangle's edges, at most a
+/// tenth of the way to the opposite vertex. Where surfaces meet at an edge, a point on it
+/// rounds to either side of the other surface, and a shadow ray from there would pass
+/// behind that surface (a floor lit through the foot of the wall standing on it).
+#[inline]
+pub fn sample_triangle_inset(v: &[Vec3; 3], u1: f32, u2: f32, margin: f32) -> Vec3 {
+    let s = u1.sqrt();
+    let mut b = [1.0 - s, s * (1.0 - u2), s * u2];
+    if b.iter().any(|&x| x < MAX_INSET) {
+        // Barycentric coordinate i is the distance to edge i over the altitude to it.
+        let e = [v[2] - v[1], v[0] - v[2], v[1] - v[0]];
+        let twice_area = e[2].cross(v[2] - v[0]).length();
+        let mut lo = [0.0f32; 3];
+        for i in 0..3 {
+            lo[i] = (margin * e[i].length() / twice_area.max(f32::MIN_POSITIVE)).min(MAX_INSET);
+        }
+        // Raise the coordinates below their floor and take the excess from the others in
+        // proportion to what they have above theirs.
+        let deficit: f32 = (0..3).map(|i| (lo[i] - b[i]).max(0.0)).sum();
+        if deficit > 0.0 {
+            let spare: f32 = (0..3).map(|i| (b[i] - lo[i]).max(0.0)).sum();
+            for i in 0..3 {
+                b[i] = if b[i] <= lo[i] {
+                    lo[i]
+                } else {
+                    b[i] - deficit * (b[i] - lo[i]) / spare
+                };
+            }
+        }
+    }
+    v[0] * b[0] + v[1] * b[1] + v[2] * b[2]
+}
+
+/// Largest barycentric margin [`sample_triangle_inset`] keeps.
+const MAX_INSET: f32 = 0.1;
 
 /// `n` stratified (Latin hypercube) jittered 2-D samples in [0, 1)², appended to `out`.
 pub fn stratified_2d(n: usize, rng: &mut SplitMix64, out: &mut impl Extend<[f32; 2]>) {

@@ -1,6 +1,6 @@
 use super::analytic::{angle_from, parallel_disk_exact, point_to_disk, point_to_polygon};
 use super::near_field::closest_on_triangle;
-use super::sampling::stratified_2d;
+use super::sampling::{sample_triangle, sample_triangle_inset, stratified_2d};
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
 use std::f64::consts::PI;
@@ -137,4 +137,57 @@ fn stratified_samples_cover_strata() {
     }
     assert_eq!(cu, [1; 8]);
     assert_eq!(cv, [1; 8]);
+}
+
+/// Inset points keep the margin from every edge (also at the corners, where two
+/// coordinates are raised), stay inside, and elsewhere are the plain area-uniform points.
+#[test]
+fn inset_points_keep_their_margin_from_the_edges() {
+    let v = [
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.125),
+        Vec3::new(1.125, 0.0, 0.125),
+    ];
+    let margin = 1e-3f32;
+    let dist = |p: Vec3, a: Vec3, b: Vec3| (p - a).cross((b - a).normalize()).length();
+    let mut rng = SplitMix64::new(11);
+    let mut moved = 0;
+    let corners = [0.0, 1e-9, 1e-4, 0.5, 1.0 - 1e-7];
+    let mut us: Vec<(f32, f32)> = corners
+        .iter()
+        .flat_map(|&a| corners.iter().map(move |&b| (a, b)))
+        .collect();
+    us.extend((0..10_000).map(|_| (rng.next_f32(), rng.next_f32())));
+    for (u1, u2) in us {
+        let p = sample_triangle_inset(&v, u1, u2, margin);
+        let q = sample_triangle(&v, u1, u2);
+        let d = [
+            dist(p, v[1], v[2]),
+            dist(p, v[2], v[0]),
+            dist(p, v[0], v[1]),
+        ];
+        for d in d {
+            assert!(d >= 0.999 * margin, "{u1} {u2}: {d}");
+        }
+        let dq = [
+            dist(q, v[1], v[2]),
+            dist(q, v[2], v[0]),
+            dist(q, v[0], v[1]),
+        ];
+        if dq.iter().all(|&d| d >= 1.001 * margin) {
+            assert!((p - q).length() < 1e-6, "{u1} {u2}: moved {p} from {q}");
+        } else {
+            moved += 1;
+        }
+    }
+    // Only points within the margin move: the strip along the perimeter, of area about
+    // perimeter × margin, holds that share of the random points (the 25 corner cases aside).
+    let perimeter = (v[1] - v[0]).length() + (v[2] - v[1]).length() + (v[0] - v[2]).length();
+    let area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length();
+    let expected = 10_000.0 * perimeter * margin / area;
+    let random = (moved as f32 - 25.0).max(0.0);
+    assert!(
+        (random - expected).abs() < 0.2 * expected,
+        "{moved} points moved, expected about {expected}"
+    );
 }

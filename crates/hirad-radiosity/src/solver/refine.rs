@@ -384,16 +384,22 @@ impl Solver<'_> {
                 members = Some(ev.members.into_boxed_slice());
             }
             // A cluster receiver hands what it receives to all of its surfaces that face the
-            // source: when some samples see the source and some do not, some surfaces get up
-            // to the whole transfer wrongly, and interreflection among the cluster's surfaces
-            // multiplies that by up to ρ / (1 − ρ) (a closed thin box of ρ = 0.93: 13×).
-            // Judge such a link on its largest sampled kernel times that gain.
-            if ev.mixed && r.kind == Kind::Cluster {
-                let rho = (r.rho.max_element() as f64).min(0.999);
-                link.est = (ev.kmax * (rho / (1.0 - rho)).max(1.0)) as f32;
-                if let Some(a) = split(link.est as f64) {
-                    return (a, *l, rays, None);
-                }
+            // source: when some samples see the source and some do not, a shadow boundary
+            // crosses the cluster and the hand-out would light surfaces the source cannot
+            // see, whatever the transfer's size. Such a link goes down to the children.
+            if ev.mixed && r.kind == Kind::Cluster && allow && r.num_children > 0 {
+                return (Action::SplitRecv, *l, rays, None);
+            }
+            // Likewise a cluster source whose samples do not carry their own surface's
+            // radiosity (the isotropic model): the receiver would take the cluster's mean over
+            // surfaces it does not see.
+            if ev.mixed
+                && s.kind == Kind::Cluster
+                && members.is_none()
+                && allow
+                && s.num_children > 0
+            {
+                return (Action::SplitSrc, *l, rays, None);
             }
             // Where no bound judged the link, a sampled kernel above the estimate shows that
             // the estimate missed something (surfaces of a cluster much nearer the other end

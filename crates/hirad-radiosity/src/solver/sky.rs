@@ -9,7 +9,7 @@
 
 use super::Solver;
 use crate::element::Kind;
-use crate::formfactor::sample_triangle;
+use crate::formfactor::sample_triangle_inset;
 use glam::DVec3;
 use hirad_core::rng::SplitMix64;
 use rayon::prelude::*;
@@ -24,7 +24,7 @@ impl Solver<'_> {
         let n_sky = self.cfg.sky_rays as usize;
         let seed = self.cfg.seed ^ 0x5u64.wrapping_mul(0x9E37_79B9);
         let up = scene.up.vector();
-        let tmin = 1e-5 * scene.bbox.extent().length().max(1e-12);
+        let margin = vis.margin();
         let covers = &self.covers;
         let vals: Vec<(DVec3, u64)> = (lo..hi)
             .into_par_iter()
@@ -37,7 +37,6 @@ impl Solver<'_> {
                 let mut h = DVec3::ZERO;
                 let mut rays = 0u64;
                 let n = e.normal;
-                let offset = n * tmin;
                 if let Some(sun) = scene.sun {
                     let c = n.dot(sun.direction);
                     if c > 0.0 {
@@ -45,14 +44,14 @@ impl Solver<'_> {
                         crate::formfactor::stratified_2d(n_sun, &mut rng, &mut pts);
                         let (mut open, mut n_open) = (0.0, 0usize);
                         for p in &pts {
-                            let x = sample_triangle(&e.verts, p[0], p[1]);
+                            let x = sample_triangle_inset(&e.verts, p[0], p[1], margin);
                             // Irradiance is the mean over the element's open points.
                             if covers.covered(e.tri, e.normal, x) {
                                 continue;
                             }
                             n_open += 1;
                             rays += 1;
-                            open += vis.open_to_infinity(x + offset, sun.direction, tmin, e.tri);
+                            open += vis.open_to_infinity(x, sun.direction, e.tri);
                         }
                         h += sun.irradiance.as_dvec3() * (c as f64 * open / n_open.max(1) as f64);
                     }
@@ -65,7 +64,7 @@ impl Solver<'_> {
                     let (t, b) = n.any_orthonormal_pair();
                     let (mut open, mut n_open) = (0.0, 0usize);
                     for (d, p) in dirs.iter().zip(&pts) {
-                        let x = sample_triangle(&e.verts, p[0], p[1]);
+                        let x = sample_triangle_inset(&e.verts, p[0], p[1], margin);
                         if covers.covered(e.tri, e.normal, x) {
                             continue;
                         }
@@ -81,7 +80,7 @@ impl Solver<'_> {
                             continue;
                         }
                         rays += 1;
-                        open += vis.open_to_infinity(x + offset, w, tmin, e.tri);
+                        open += vis.open_to_infinity(x, w, e.tri);
                     }
                     h += sky.as_dvec3() * (std::f64::consts::PI * open / n_open.max(1) as f64);
                 }

@@ -88,7 +88,7 @@ pub fn direct(
         for &t in &ems.ids {
             let v = scene.tri_vertices(t as usize);
             let (u1, u2) = (rng.next_f32(), rng.next_f32());
-            let Some(y) = sample_triangle_above(p, n, &v, u1, u2) else {
+            let Some(y) = sample_triangle_above(p, n, &v, (u1, u2), 0.0) else {
                 continue;
             };
             let d = y - o;
@@ -156,9 +156,13 @@ pub fn brute_irradiance(
             if f <= 0.0 {
                 continue;
             }
-            let Some(y) =
-                sample_triangle_above(x, re.normal, &es.verts, rng.next_f32(), rng.next_f32())
-            else {
+            let Some(y) = sample_triangle_above(
+                x,
+                re.normal,
+                &es.verts,
+                (rng.next_f32(), rng.next_f32()),
+                0.0,
+            ) else {
                 continue;
             };
             if covers.covered(es.tri, es.normal, y) {
