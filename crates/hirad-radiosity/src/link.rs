@@ -25,6 +25,11 @@ pub struct Link {
     /// Where below a surface source the transfer leaves from ([`Deposit`]): the mean
     /// radiosity there instead of the source's; none: the source's.
     pub draw: Deposit,
+    /// A directional cluster receiver whose rays disagree: the start of its run in
+    /// [`LinkSet::open_members`] (a header `(count, 0)`, then `(surface, g)`: the surfaces
+    /// whose samples saw the source, each getting irradiance `g` times the link's instead of
+    /// the cluster's hand-out), or [`NO_SAMPLES`].
+    pub open_members: u32,
 }
 
 /// Points of a link below its ends, as paths down the midpoint subdivision. On a surface
@@ -129,6 +134,7 @@ impl Link {
             samples: NO_SAMPLES,
             deposit: Deposit(0),
             draw: Deposit(0),
+            open_members: NO_SAMPLES,
         }
     }
 
@@ -176,6 +182,8 @@ pub struct LinkSet {
     pub samples: Vec<Sample>,
     /// Samples per link that has them (the shadow rays per link).
     pub per_link: u32,
+    /// Runs of open surfaces of the links with [`Link::open_members`].
+    pub open_members: Vec<Sample>,
 }
 
 impl LinkSet {
@@ -211,16 +219,40 @@ impl LinkSet {
             .sum()
     }
 
-    /// Sort `links` by (receiver, source) and build the groups; `samples` holds the samples the links
-    /// refer to (`per_link` each), compacted here to those of the links kept.
-    pub fn from_links(mut links: Vec<Link>, samples: &[Sample], per_link: u32) -> LinkSet {
+    /// The surfaces of link `l` into a cluster that saw the source, with their irradiance per
+    /// unit of the link's ([`Link::open_members`]); empty when it has none.
+    #[inline]
+    pub fn open_members(&self, l: &Link) -> &[Sample] {
+        if l.open_members == NO_SAMPLES {
+            return &[];
+        }
+        let s = l.open_members as usize;
+        let n = self.open_members[s].0 as usize;
+        &self.open_members[s + 1..s + 1 + n]
+    }
+
+    /// Sort `links` by (receiver, source) and build the groups; `samples` holds the samples the
+    /// links refer to (`per_link` each) and `open` their open surfaces' runs, compacted here
+    /// to those of the links kept.
+    pub fn from_links(
+        mut links: Vec<Link>,
+        (samples, open): (&[Sample], &[Sample]),
+        per_link: u32,
+    ) -> LinkSet {
         let pl = per_link as usize;
         let mut kept = Vec::new();
+        let mut kept_open = Vec::new();
         for l in links.iter_mut() {
             if l.samples != NO_SAMPLES {
                 let s = l.samples as usize;
                 l.samples = kept.len() as u32;
                 kept.extend_from_slice(&samples[s..s + pl]);
+            }
+            if l.open_members != NO_SAMPLES {
+                let s = l.open_members as usize;
+                let n = open[s].0 as usize;
+                l.open_members = kept_open.len() as u32;
+                kept_open.extend_from_slice(&open[s..s + 1 + n]);
             }
         }
         // (receiver, source) orders the links completely: the order does not depend on the
@@ -229,6 +261,7 @@ impl LinkSet {
         // Held for the rest of the solve: no spare capacity (the memory budget counts it).
         links.shrink_to_fit();
         kept.shrink_to_fit();
+        kept_open.shrink_to_fit();
         let mut groups = Vec::new();
         let mut s = 0usize;
         while s < links.len() {
@@ -246,6 +279,7 @@ impl LinkSet {
             groups,
             samples: kept,
             per_link,
+            open_members: kept_open,
         }
     }
 
@@ -263,7 +297,8 @@ impl LinkSet {
     pub fn memory_bytes(&self) -> usize {
         self.links.capacity() * std::mem::size_of::<Link>()
             + self.groups.capacity() * 12
-            + self.samples.capacity() * std::mem::size_of::<Sample>()
+            + (self.samples.capacity() + self.open_members.capacity())
+                * std::mem::size_of::<Sample>()
     }
 }
 

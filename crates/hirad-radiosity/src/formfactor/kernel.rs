@@ -50,6 +50,11 @@ pub struct KernelEval {
     pub deposit: Deposit,
     /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
     pub draw: Deposit,
+    /// Directional cluster receiver whose rays disagree: the surfaces whose samples saw the
+    /// source, each with its irradiance per unit of the cluster's: the hand-out's power
+    /// (`W = Σ A_s w_s` times the cluster's irradiance) shared in proportion to what their
+    /// samples received, over their area.
+    pub open_members: Vec<(u32, f32)>,
 }
 
 /// What a link records of its samples ([`Deposit`]): on a surface receiver (vertices `vr`),
@@ -340,6 +345,9 @@ impl KernelCtx<'_> {
                 }
             );
         let mut members = Vec::new();
+        // Directional cluster receiver: the surfaces of the samples that saw the source and
+        // what they received.
+        let mut recv_open: SmallVec<[(u32, f64); INLINE]> = SmallVec::new();
         // Directional cluster receiver with oriented reception: its surfaces k with their
         // hand-out weights w_k (`facing_weight`) as a cumulative distribution of A_k·w_k; a
         // surface drawn from it contributes E(x)/w_k, whose mean is Σ A_k E_k / Σ A_k w_k, the
@@ -411,6 +419,7 @@ impl KernelCtx<'_> {
             // like any other), a whole cluster when the isotropic model stands for it (whose
             // point emitter or receiver has no inside, as in Sillion's model).
             let mut ex = ri.endpoint();
+            let mut recv_member = NO_MEMBER;
             let ey = match sj {
                 End::Cluster {
                     orient: Some(_), ..
@@ -437,6 +446,7 @@ impl KernelCtx<'_> {
                     let x = self.point_on(&e.verts, u as f32, su[s][1]);
                     let fx = self.sample_kernel(x, e.normal, &src, member) / w;
                     ex = Endpoint::Surface(e.tri);
+                    recv_member = id;
                     (x, fx, Some(e.normal))
                 }
                 (End::Cluster { node, c, .. }, None) => {
@@ -509,6 +519,9 @@ impl KernelCtx<'_> {
             if per_member {
                 members.push((member, (fx * vis) as f32));
             }
+            if recv_member != NO_MEMBER && fx * vis > 0.0 {
+                recv_open.push((recv_member, fx * vis));
+            }
         }
         if bounds {
             // Corner points of a surface receiver widen the kernel range (no rays).
@@ -545,16 +558,33 @@ impl KernelCtx<'_> {
             _ => None,
         };
         let (deposit, draw) = deposit_at(vr.as_ref(), vs.as_ref(), &mut recv, &mut seen, &mut rng);
+        let mixed = open && blocked;
+        // The hand-out would deliver `k·B·W` to the cluster's surfaces in proportion to
+        // `A_s w_s`; when the rays disagree, the surfaces whose samples saw the source share it
+        // in proportion to what their samples received, and the others get nothing.
+        let mut open_members = Vec::new();
+        if let (true, Some(cdf)) = (mixed, recv_cdf.as_deref()) {
+            let total_w = cdf[cdf.len() - 1].1;
+            let received: f64 = recv_open.iter().map(|m| m.1).sum();
+            recv_open.sort_unstable_by_key(|m| m.0);
+            for m in recv_open.chunk_by(|a, b| a.0 == b.0) {
+                let id = m[0].0;
+                let share = m.iter().map(|m| m.1).sum::<f64>() / received;
+                let area = self.elems.elems[id as usize].area as f64;
+                open_members.push((id, (total_w * share / area.max(1e-300)) as f32));
+            }
+        }
         KernelEval {
             k,
             est,
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,
             rays,
-            mixed: open && blocked,
+            mixed,
             members,
             deposit,
             draw,
+            open_members,
         }
     }
 

@@ -176,6 +176,7 @@ impl KernelCtx<'_> {
             members: Vec::new(),
             deposit,
             draw,
+            open_members: Vec::new(),
         }
     }
 }

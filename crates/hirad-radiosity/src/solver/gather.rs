@@ -37,6 +37,11 @@ struct Gathered {
     entries: Vec<Entry>,
     /// Surface receivers: transfers that land where their rays saw the source.
     deposits: Vec<(Deposit, DVec3)>,
+    /// Cluster receivers: irradiance of the surfaces whose samples saw the source, from links
+    /// whose rays disagreed ([`Link::open_members`]).
+    ///
+    /// [`Link::open_members`]: crate::link::Link::open_members
+    open: Vec<(u32, DVec3)>,
 }
 
 /// What a cluster received through one link, handed to its surfaces in push-pull.
@@ -94,6 +99,7 @@ impl Solver<'_> {
         }
         self.entries.reserve_exact(n_entries);
         self.deposits.reserve_exact(n_deposits);
+        let mut open = Vec::new();
         for start in (0..n_groups).step_by(GATHER_CHUNK) {
             let el = &self.el;
             let set = &self.set;
@@ -110,7 +116,11 @@ impl Solver<'_> {
                     for l in &links[a as usize..b as usize] {
                         let contrib = set.gather(l, el);
                         let se = &el.elems[l.src as usize];
-                        if re.kind == Kind::Cluster {
+                        let open = set.open_members(l);
+                        if !open.is_empty() {
+                            g.open
+                                .extend(open.iter().map(|&(m, f)| (m, contrib * f as f64)));
+                        } else if re.kind == Kind::Cluster {
                             let d = (se.centroid - re.centroid).normalize_or_zero();
                             g.entries.push(Entry {
                                 d,
@@ -140,8 +150,9 @@ impl Solver<'_> {
                     g
                 })
                 .collect();
-            for g in res {
+            for mut g in res {
                 let id = g.recv as usize;
+                open.append(&mut g.open);
                 if !g.deposits.is_empty() {
                     let s = self.deposits.len() as u32;
                     self.deposits.extend_from_slice(&g.deposits);
@@ -157,6 +168,10 @@ impl Solver<'_> {
                     self.k_sum[id] = g.k_sum;
                 }
             }
+        }
+        // After every receiver's own gather (an open surface may have links of its own).
+        for (m, h) in open {
+            self.el.h[m as usize] += h;
         }
         self.note_peak();
     }

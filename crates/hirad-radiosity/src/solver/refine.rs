@@ -10,11 +10,17 @@
 //! receiver splits up to `shadow_levels` further levels. A subdivided source whose children's
 //! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
 //! samples land on.
+//!
+//! Visibility: the hand-out of a link into a cluster whose shadow rays disagree cannot tell the
+//! surfaces the source sees from those it does not, whatever the transfer's size: a
+//! directional cluster hands it to the surfaces whose samples saw the source instead, an
+//! isotropic one splits, as does an isotropic cluster source (its receiver would take the
+//! cluster's mean).
 
 use super::budget::Growth;
 use super::gather::Entry;
 use super::Solver;
-use crate::config::Oracle;
+use crate::config::{ClusterEmission, Oracle, Reception};
 use crate::element::Kind;
 use crate::formfactor::KernelCtx;
 use crate::link::{Deposit, Link, LinkSet, Sample, NO_SAMPLES};
@@ -28,18 +34,27 @@ use std::sync::atomic::{AtomicBool, Ordering};
 const REFINE_CHUNK: usize = 1 << 18;
 
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
-/// cast, and the samples of a kept link from a directional cluster.
-pub(super) type Decided = (Action, Link, u64, Option<Box<[Sample]>>);
+/// cast, and what a kept link records of its samples.
+pub(super) type Decided = (Action, Link, u64, Option<Box<Recorded>>);
+
+/// The samples a kept link records: from a directional cluster source, each sample's surface
+/// and share ([`Link::samples`]); into a cluster whose rays disagreed, the surfaces that
+/// saw the source ([`Link::open_members`]).
+pub(super) struct Recorded {
+    samples: Vec<Sample>,
+    open: Vec<Sample>,
+}
 
 impl Solver<'_> {
     /// One refinement sweep over every link (the root self-link on the first iteration).
     pub(super) fn refine(&mut self, first: bool, cancel: &AtomicBool) -> Result<()> {
         let per_link = self.cfg.shadow_rays.max(1);
-        let (mut frontier, mut samples): (Vec<Link>, Vec<Sample>) = if first {
-            (vec![Link::new(0, 0)], Vec::new())
+        let (mut frontier, mut samples, mut open): (Vec<Link>, Vec<Sample>, Vec<Sample>) = if first
+        {
+            (vec![Link::new(0, 0)], Vec::new(), Vec::new())
         } else {
             let set = std::mem::take(&mut self.set);
-            (set.links, set.samples)
+            (set.links, set.samples, set.open_members)
         };
         // The gather rebuilds its hand-outs and deposits from the refined links.
         self.entries = Vec::new();
@@ -61,25 +76,31 @@ impl Solver<'_> {
                 chunk.reverse();
                 self.refine_chunk(
                     &chunk,
-                    (&mut done, &mut next, &mut samples),
+                    (&mut done, &mut next, &mut samples, &mut open),
                     frontier.len(),
                     cancel,
                 )?;
             }
             frontier = next;
         }
-        self.set = LinkSet::from_links(done, &samples, per_link);
+        self.set = LinkSet::from_links(done, (&samples, &open), per_link);
         self.note_peak();
         Ok(())
     }
 
-    /// Decide the links of `chunk`: kept links go to `done` (their samples to `samples`), the
-    /// children of split ones to `next`; `rest` links of the pass are still to come. When the
-    /// growth would pass the memory budget, the chunk is decided again without refinement.
+    /// Decide the links of `chunk`: kept links go to `done` (their samples to `samples`, their
+    /// open surfaces to `open`), the children of split ones to `next`; `rest` links of the
+    /// pass are still to come. When the growth would pass the memory budget, the chunk is
+    /// decided again without refinement.
     pub(super) fn refine_chunk(
         &mut self,
         chunk: &[Link],
-        (done, next, samples): (&mut Vec<Link>, &mut Vec<Link>, &mut Vec<Sample>),
+        (done, next, samples, open): (
+            &mut Vec<Link>,
+            &mut Vec<Link>,
+            &mut Vec<Sample>,
+            &mut Vec<Sample>,
+        ),
         rest: usize,
         cancel: &AtomicBool,
     ) -> Result<()> {
@@ -131,7 +152,7 @@ impl Solver<'_> {
             let projected = self.projected(&Growth {
                 links: done.len() + rest + chunk.len() + next.len() + new_links,
                 elements: to_split.len() * 4,
-                samples: samples.len(),
+                samples: samples.len() + open.len(),
                 pending: rest + chunk.len() + next.len() + new_links,
                 // A later pass decides the first chunk of all the links.
                 chunk: REFINE_CHUNK.min(done.len() + rest + chunk.len() + next.len() + new_links),
@@ -181,9 +202,17 @@ impl Solver<'_> {
                                 std::mem::size_of::<(Deposit, DVec3)>() * l.deposit.points() / 4;
                         }
                         if let Some(m) = m {
-                            self.kept_samples += m.len();
-                            l.samples = samples.len() as u32;
-                            samples.extend_from_slice(&m);
+                            if !m.samples.is_empty() {
+                                self.kept_samples += m.samples.len();
+                                l.samples = samples.len() as u32;
+                                samples.extend_from_slice(&m.samples);
+                            }
+                            if !m.open.is_empty() {
+                                self.kept_samples += m.open.len() + 1;
+                                l.open_members = open.len() as u32;
+                                open.push((m.open.len() as u32, 0.0));
+                                open.extend_from_slice(&m.open);
+                            }
                         }
                         done.push(l)
                     }
@@ -214,7 +243,8 @@ impl Solver<'_> {
             let m = self.fixed
                 + self.memory_now(held)
                 + (chunk.len() * std::mem::size_of::<Decided>()
-                    + samples.len() * std::mem::size_of::<Sample>()) as u64;
+                    + (samples.len() + open.len()) * std::mem::size_of::<Sample>())
+                    as u64;
             self.peak = self.peak.max(m);
             return Ok(());
         }
@@ -380,25 +410,32 @@ impl Solver<'_> {
             link.k = ev.k as f32;
             link.deposit = ev.deposit;
             link.draw = ev.draw;
-            if !ev.members.is_empty() {
-                members = Some(ev.members.into_boxed_slice());
-            }
+            let has_members = !ev.members.is_empty();
             // A cluster receiver hands what it receives to all of its surfaces that face the
             // source: when some samples see the source and some do not, a shadow boundary
             // crosses the cluster and the hand-out would light surfaces the source cannot
-            // see, whatever the transfer's size. Such a link goes down to the children.
-            if ev.mixed && r.kind == Kind::Cluster && allow && r.num_children > 0 {
+            // see, whatever the transfer's size. A directional cluster hands it to the surfaces
+            // whose samples saw the source instead ([`Link::open_members`]); an isotropic one,
+            // which samples no surface, goes down to its children.
+            if ev.mixed
+                && r.kind == Kind::Cluster
+                && !(self.cfg.cluster_emission == ClusterEmission::Directional
+                    && self.cfg.cluster_receive == Reception::Oriented)
+                && allow
+                && r.num_children > 0
+            {
                 return (Action::SplitRecv, *l, rays, None);
+            }
+            if has_members || !ev.open_members.is_empty() {
+                members = Some(Box::new(Recorded {
+                    samples: ev.members,
+                    open: ev.open_members,
+                }));
             }
             // Likewise a cluster source whose samples do not carry their own surface's
             // radiosity (the isotropic model): the receiver would take the cluster's mean over
             // surfaces it does not see.
-            if ev.mixed
-                && s.kind == Kind::Cluster
-                && members.is_none()
-                && allow
-                && s.num_children > 0
-            {
+            if ev.mixed && s.kind == Kind::Cluster && !has_members && allow && s.num_children > 0 {
                 return (Action::SplitSrc, *l, rays, None);
             }
             // Where no bound judged the link, a sampled kernel above the estimate shows that
