@@ -59,7 +59,7 @@ impl<'a> Visibility<'a> {
             + self.volume.as_ref().map_or(0, |v| v.memory_bytes())
     }
 
-    /// Rounding scale of the scene's coordinates (a length, [`EPS_REL`] of the largest):
+    /// Rounding scale of the scene's coordinates (a length, 1e-6 of the largest coordinate):
     /// shadow rays leave this much out at each end, for the rounding of their end points.
     pub fn eps(&self) -> f32 {
         self.eps
