@@ -99,7 +99,6 @@ impl Solver<'_> {
         }
         self.entries.reserve_exact(n_entries);
         self.deposits.reserve_exact(n_deposits);
-        let mut open = Vec::new();
         for start in (0..n_groups).step_by(GATHER_CHUNK) {
             let el = &self.el;
             let set = &self.set;
@@ -150,9 +149,13 @@ impl Solver<'_> {
                     g
                 })
                 .collect();
-            for mut g in res {
+            for g in res {
                 let id = g.recv as usize;
-                open.append(&mut g.open);
+                // Open surfaces of a cluster add to their own gather (zeroed above), which
+                // comes in this chunk or another.
+                for &(m, h) in &g.open {
+                    self.el.h[m as usize] += h;
+                }
                 if !g.deposits.is_empty() {
                     let s = self.deposits.len() as u32;
                     self.deposits.extend_from_slice(&g.deposits);
@@ -163,15 +166,11 @@ impl Solver<'_> {
                     self.entries.extend_from_slice(&g.entries);
                     self.cl_ranges[id] = (s, self.entries.len() as u32);
                 } else {
-                    self.el.h[id] = g.h;
+                    self.el.h[id] += g.h;
                     self.h_cluster[id] = g.h_cluster;
                     self.k_sum[id] = g.k_sum;
                 }
             }
-        }
-        // After every receiver's own gather (an open surface may have links of its own).
-        for (m, h) in open {
-            self.el.h[m as usize] += h;
         }
         self.note_peak();
     }
