@@ -116,7 +116,9 @@ impl<'a> Visibility<'a> {
     ) -> f64 {
         match (self.mode, &self.volume) {
             (VisibilityMode::None, _) => 1.0,
-            (VisibilityMode::Volume, Some(v)) => v.transmittance(x, y, self.vol_ratio, a, b) as f64,
+            (VisibilityMode::Volume, Some(v)) => {
+                v.transmittance_in(x, y, (t0, t1), self.vol_ratio, (a, b)) as f64
+            }
             _ => {
                 let skip = |t: u32| self.in_end(a, t) || self.in_end(b, t);
                 if t0 >= t1 {
@@ -143,12 +145,12 @@ impl<'a> Visibility<'a> {
                 let root = v.tree.nodes.first().map(|n| n.bbox.size()).unwrap_or(0.0);
                 let far = origin + dir * (2.0 * root * 3f32.sqrt() + 1.0);
                 let start = origin + dir * self.eps;
-                v.transmittance(
+                v.transmittance_in(
                     start,
                     far,
+                    (0.0, 1.0),
                     self.vol_ratio,
-                    Endpoint::Surface(tri),
-                    Endpoint::None,
+                    (Endpoint::Surface(tri), Endpoint::None),
                 ) as f64
             }
             _ => {

@@ -198,20 +198,20 @@ fn mode_name(m: Mode) -> String {
     format!("{}/{}/{}", m.vis.name(), m.emission.name(), m.refine.name())
 }
 
-/// Leaks not fixed yet, about 2–4× the largest value measured (2026-12-04): volume visibility
-/// lets a little light through walls (≤ 1.0e-5); objr's upper clusters, PROXI's over objects,
-/// straddle the wall of cell_across_wall, and when none of a link's few samples lands on a
-/// small surface behind it, the cluster hands that surface its share (≤ 2.7e-7 with rays).
-/// (A cluster link whose rays disagree now splits its cluster receiver, or its isotropic
-/// cluster source, and sample points keep a margin from their triangle's edges: proxi's
-/// straddling clusters, a floor lit through the foot of a wall and the lamp in a closed box
-/// measure 0 with rays.)
+/// Leaks not fixed yet, about 2–4× the largest value measured (2026-12-04): with volumes,
+/// light leaves the small closed box of lamp_in_box, which long segments take as a volume
+/// (≤ 9.5e-6; the model's transmittance is never 0); objr's upper clusters, PROXI's over
+/// objects, straddle the wall of cell_across_wall, and when none of a link's few samples lands
+/// on a small surface behind it, the cluster hands that surface its share (≤ 2.7e-7 with
+/// rays). (A mixed link into a cluster now lands on the surfaces its samples saw, or splits
+/// an isotropic cluster end; sample points keep a margin from their triangle's edges, which
+/// shadow segments, also through volumes, no longer leave out: the other leaks measure 0.)
 fn known_leak(scene: &str, strategy: Strategy, m: Mode) -> f64 {
     let mut bound: f64 = 1e-9;
     if scene == "cell_across_wall" && strategy == Strategy::Objr {
         bound = bound.max(1e-6);
     }
-    if m.vis == VisibilityMode::Volume {
+    if scene == "lamp_in_box" && m.vis == VisibilityMode::Volume {
         bound = bound.max(2e-5);
     }
     bound

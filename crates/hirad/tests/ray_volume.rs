@@ -8,6 +8,9 @@ use hirad::ray::{RayCaster, Segment};
 use hirad::rng::SplitMix64;
 use hirad::scene::{Material, RawScene, Scene, SceneOptions};
 
+/// The spec's parameter range of a segment (`ray-casting test`).
+const SPEC: (f32, f32) = (Segment::SPEC_TMIN, Segment::SPEC_TMAX);
+
 fn scene_from(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Scene {
     let n = triangles.len();
     let raw = RawScene {
@@ -342,7 +345,13 @@ fn end_point_clusters_are_excluded() {
     let p = Vec3::new(0.0, 0.01, 0.02);
     let q = Vec3::new(10.0, -0.01, 0.0);
     let depth_m = vc
-        .optical_depth(p, q, 0.5, Endpoint::Cluster(a), Endpoint::Cluster(bb))
+        .optical_depth(
+            p,
+            q,
+            SPEC,
+            0.5,
+            (Endpoint::Cluster(a), Endpoint::Cluster(bb)),
+        )
         .unwrap();
     // Only M counts: κ_M times the length inside M's padded (here: real) box.
     let mb = tree.nodes[m as usize].bbox;
@@ -352,12 +361,18 @@ fn end_point_clusters_are_excluded() {
     assert!((depth_m - want).abs() < 1e-4 * want, "{depth_m} vs {want}");
     // Without exclusions the end clusters add their own (half-box) depth.
     let all = vc
-        .optical_depth(p, q, 0.5, Endpoint::None, Endpoint::None)
+        .optical_depth(p, q, SPEC, 0.5, (Endpoint::None, Endpoint::None))
         .unwrap();
     assert!(all > depth_m * 1.5, "{all} vs {depth_m}");
     // Root is the ancestor of the end clusters: never a volume even with a huge ratio.
     let big = vc
-        .optical_depth(p, q, 100.0, Endpoint::Cluster(a), Endpoint::Cluster(bb))
+        .optical_depth(
+            p,
+            q,
+            SPEC,
+            100.0,
+            (Endpoint::Cluster(a), Endpoint::Cluster(bb)),
+        )
         .unwrap();
     assert!((big - depth_m).abs() < 1e-9);
     // Surface end points: their clusters are descended, tested exactly, except the surfaces
@@ -366,7 +381,13 @@ fn end_point_clusters_are_excluded() {
     let sb = groups[2].start;
     let pa = scene.tri_centroid(sa as usize);
     let pb = scene.tri_centroid(sb as usize);
-    let d = vc.optical_depth(pa, pb, 0.5, Endpoint::Surface(sa), Endpoint::Surface(sb));
+    let d = vc.optical_depth(
+        pa,
+        pb,
+        SPEC,
+        0.5,
+        (Endpoint::Surface(sa), Endpoint::Surface(sb)),
+    );
     if let Some(d) = d {
         assert!(d > 0.0 && d < all * 2.0);
     }

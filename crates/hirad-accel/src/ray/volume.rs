@@ -272,19 +272,38 @@ impl<'a> VolumeCaster<'a> {
         exclude_a: Endpoint,
         exclude_b: Endpoint,
     ) -> f32 {
-        self.optical_depth(p, q, vol_ratio, exclude_a, exclude_b)
+        self.transmittance_in(
+            p,
+            q,
+            (Segment::SPEC_TMIN, Segment::SPEC_TMAX),
+            vol_ratio,
+            (exclude_a, exclude_b),
+        )
+    }
+
+    /// [`VolumeCaster::transmittance`] of the part `t ∈ [tmin, tmax]` of the segment
+    /// `p + t (q − p)` (the solver's shadow segments leave out less than the spec's test).
+    pub fn transmittance_in(
+        &self,
+        p: Vec3,
+        q: Vec3,
+        range: (f32, f32),
+        vol_ratio: f32,
+        (exclude_a, exclude_b): (Endpoint, Endpoint),
+    ) -> f32 {
+        self.optical_depth(p, q, range, vol_ratio, (exclude_a, exclude_b))
             .map_or(0.0, |d| (-d).exp() as f32)
     }
 
-    /// Optical depth `Σ κ_c ℓ_c` of the segment, or `None` when an exactly tested surface
-    /// blocks it.
+    /// Optical depth `Σ κ_c ℓ_c` of the part `t ∈ [tmin, tmax]` of the segment, or `None`
+    /// when an exactly tested surface blocks it.
     pub fn optical_depth(
         &self,
         p: Vec3,
         q: Vec3,
+        (tmin, tmax): (f32, f32),
         vol_ratio: f32,
-        exclude_a: Endpoint,
-        exclude_b: Endpoint,
+        (exclude_a, exclude_b): (Endpoint, Endpoint),
     ) -> Option<f64> {
         if self.tree.nodes.is_empty() {
             return Some(0.0);
@@ -294,7 +313,6 @@ impl<'a> VolumeCaster<'a> {
         let Some(r) = RayPre::new(p, dir) else {
             return Some(0.0);
         };
-        let (tmin, tmax) = (Segment::SPEC_TMIN, Segment::SPEC_TMAX);
         let ea = self.resolve(exclude_a);
         let eb = self.resolve(exclude_b);
         let limit = vol_ratio * len;
@@ -311,7 +329,7 @@ impl<'a> VolumeCaster<'a> {
             let ci = c as usize;
             let holds_end = self.is_anc_or_self(c, ea.holder) || self.is_anc_or_self(c, eb.holder);
             if !holds_end && self.size[ci] < limit {
-                depth += self.kappa[ci] as f64 * self.inside_length(p, dir, ci, len);
+                depth += self.kappa[ci] as f64 * self.inside_length(p, dir, (tmin, tmax), ci, len);
                 continue;
             }
             for &s in self.tree.node_surfaces(c) {
@@ -333,13 +351,13 @@ impl<'a> VolumeCaster<'a> {
         Some(depth)
     }
 
-    /// Length of the segment's parameter range `[1e-4, 1 − 1e-4]` inside the padded box of
-    /// node `ci`.
-    fn inside_length(&self, p: Vec3, dir: Vec3, ci: usize, len: f32) -> f64 {
+    /// Length of the segment's parameter range `[tmin, tmax]` inside the padded box of node
+    /// `ci`.
+    fn inside_length(&self, p: Vec3, dir: Vec3, range: (f32, f32), ci: usize, len: f32) -> f64 {
         // In f64: ℓ of a thin (padded) box is a small difference of parameters.
         let b = &self.padded[ci];
-        let mut tn = Segment::SPEC_TMIN as f64;
-        let mut tf = Segment::SPEC_TMAX as f64;
+        let mut tn = range.0 as f64;
+        let mut tf = range.1 as f64;
         for a in 0..3 {
             let o = p[a] as f64;
             let d = dir[a] as f64;
