@@ -152,6 +152,29 @@ fn validate_compares_the_solution_with_two_references() {
     assert!(v["links"].as_u64().unwrap() > 0);
 }
 
+/// `validate` takes the solver's flags as `solve` does, and reports them.
+#[test]
+fn validate_takes_the_solver_flags() {
+    let v = json_ok(hirad().args([
+        "validate",
+        "cornell",
+        "--size",
+        "64x48",
+        "--spp",
+        "64",
+        "--visibility",
+        "volume",
+        "--refine",
+        "error",
+        "--json",
+    ]));
+    assert_eq!(v["visibility"], "volume", "{v}");
+    assert_eq!(v["refine"], "error", "{v}");
+    assert_eq!(v["cluster_emission"], "directional", "{v}");
+    let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"));
+    assert!((f("surface_luminance_ratio") - 1.0).abs() < 0.05, "{v}");
+}
+
 #[test]
 fn validate_from_a_view_that_sees_nothing_says_so() {
     let o = hirad()

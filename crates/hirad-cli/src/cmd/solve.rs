@@ -26,6 +26,37 @@ pub struct Args {
     /// Viewpoint of the image (`--up y|z` also sets the scene's up axis).
     #[command(flatten)]
     pub camera: super::image_args::CameraArgs,
+    /// The solver's settings.
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    /// Seed of the random choices, and of the final gather's per-pixel generators (`--gather`)
+    /// [default: 1].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Output directory.
+    #[arg(long, default_value = "hirad-out/solve")]
+    pub out: PathBuf,
+    /// Image of the solution from the scene's default viewpoint (always written into --out as
+    /// image.exr and image.png; --image FILE.png|.exr|DIR writes it there instead).
+    #[command(flatten)]
+    pub image: super::image_args::ImageArgs,
+    #[command(flatten)]
+    pub raster: super::image_args::RasterArgs,
+    /// Final gather of the image from the solution (`--gather N`; seeded by --seed).
+    #[command(flatten)]
+    pub gather: super::image_args::GatherArgs,
+    /// Discontinuous per-element colours instead of the smooth mesh (vertex values fitted to
+    /// the elements' means).
+    #[arg(long)]
+    pub flat: bool,
+    /// Benchmark: solve, print the statistics as JSON, write no files.
+    #[arg(long)]
+    pub bench: bool,
+}
+
+/// The flags that set up a solve, shared by `solve` and `validate`.
+#[derive(clap::Args, Debug)]
+pub struct SolverArgs {
     /// Clustering strategy (kdt, obt, okdt, okdt-p, tf-oct, proxi, sah, objr).
     #[arg(long, default_value = "proxi")]
     pub clustering: String,
@@ -81,37 +112,16 @@ pub struct Args {
     /// from their normals) or isotropic (the paper's Φ/4π with projected area ΣA/4).
     #[arg(long)]
     pub cluster_emission: Option<String>,
-    /// Seed of the random choices, and of the final gather's per-pixel generators (`--gather`)
-    /// [default: 1].
-    #[arg(long)]
-    pub seed: Option<u64>,
     /// Volume visibility: a cluster smaller than this × the segment length is used as a
     /// volume (default 0.1, > 0); smaller is more precise and slower.
     #[arg(long)]
     pub vol_ratio: Option<f32>,
-    /// Output directory.
-    #[arg(long, default_value = "hirad-out/solve")]
-    pub out: PathBuf,
-    /// Image of the solution from the scene's default viewpoint (always written into --out as
-    /// image.exr and image.png; --image FILE.png|.exr|DIR writes it there instead).
-    #[command(flatten)]
-    pub image: super::image_args::ImageArgs,
-    #[command(flatten)]
-    pub raster: super::image_args::RasterArgs,
-    /// Final gather of the image from the solution (`--gather N`; seeded by --seed).
-    #[command(flatten)]
-    pub gather: super::image_args::GatherArgs,
-    /// Discontinuous per-element colours instead of the smooth mesh (vertex values fitted to
-    /// the elements' means).
-    #[arg(long)]
-    pub flat: bool,
-    /// Benchmark: solve, print the statistics as JSON, write no files.
-    #[arg(long)]
-    pub bench: bool,
 }
 
-impl Args {
-    fn config(&self) -> anyhow::Result<SolverConfig> {
+impl SolverArgs {
+    /// The solver configuration these flags give, with the random choices seeded by `seed`
+    /// (the preset's when `None`), validated.
+    pub fn config(&self, seed: Option<u64>) -> anyhow::Result<SolverConfig> {
         let mut c = SolverConfig::preset(&self.preset)?;
         if let Some(r) = &self.refine {
             c.refine = Oracle::parse(r)?;
@@ -153,7 +163,7 @@ impl Args {
         if let Some(e) = &self.cluster_emission {
             c.cluster_emission = ClusterEmission::parse(e)?;
         }
-        if let Some(s) = self.seed {
+        if let Some(s) = seed {
             c.seed = s;
         }
         if let Some(v) = self.vol_ratio {
@@ -165,8 +175,8 @@ impl Args {
 }
 
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
-    let mut cfg = args.config()?;
-    let strategy = Strategy::parse(&args.clustering)?;
+    let mut cfg = args.solver.config(args.seed)?;
+    let strategy = Strategy::parse(&args.solver.clustering)?;
     let opts = args.reflectance.options(args.camera.scene_up());
     let scene = super::load_scene(&args.scene, &opts)?;
     // A file whose surfaces all have back faces (MGF `sides 2`) is solved two-sided.

@@ -13,7 +13,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::metrics::{compare, luminance};
 use hirad::progress::NoProgress;
 use hirad::radiosity::output::radiosity_mesh;
-use hirad::radiosity::{solve, SolverConfig};
+use hirad::radiosity::solve;
 use hirad::ray::RayCaster;
 use hirad::render::{
     render_reference, render_solution, BackFaces, CameraView, Image, RasterOptions,
@@ -26,16 +26,9 @@ use std::time::Instant;
 pub struct Args {
     /// Scene: a file path or a built-in name.
     pub scene: String,
-    /// Solver preset (fast, default, fine, reference).
-    #[arg(long, default_value = "default")]
-    pub preset: String,
-    /// Clustering strategy of the solve.
-    #[arg(long, default_value = "proxi")]
-    pub clustering: String,
-    /// Two-sided surfaces, in the solve and in the path tracer (implied by an MGF file whose
-    /// non-emitting materials are all `sides 2`).
-    #[arg(long)]
-    pub two_sided: bool,
+    /// The solve's settings, as `solve` takes them (`--two-sided` also in the path tracer).
+    #[command(flatten)]
+    pub solver: super::solve::SolverArgs,
     /// Paths per pixel of each reference.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -54,6 +47,10 @@ struct Report {
     preset: String,
     clustering: String,
     two_sided: bool,
+    /// The solver's visibility, refinement oracle and cluster emission.
+    visibility: String,
+    refine: String,
+    cluster_emission: String,
     spp: u32,
     width: u32,
     height: u32,
@@ -75,9 +72,8 @@ struct Report {
 }
 
 pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
-    let mut cfg = SolverConfig::preset(&a.preset)?;
-    cfg.two_sided |= a.two_sided;
-    let strategy = Strategy::parse(&a.clustering)?;
+    let mut cfg = a.solver.config(None)?;
+    let strategy = Strategy::parse(&a.solver.clustering)?;
     let opts = a.reflectance.options(a.camera.scene_up());
     let scene = super::load_scene(&a.scene, &opts)?;
     cfg.two_sided |= scene.two_sided;
@@ -129,9 +125,12 @@ pub fn run(a: Args, g: &Global) -> anyhow::Result<()> {
     let (surf_ref, _) = surface_ratio(&r2, &r1, &lamps);
     let r = Report {
         scene: a.scene.clone(),
-        preset: a.preset.clone(),
+        preset: a.solver.preset.clone(),
         clustering: strategy.name().into(),
         two_sided: sol.elements.two_sided,
+        visibility: cfg.visibility.name().into(),
+        refine: cfg.refine.name().into(),
+        cluster_emission: cfg.cluster_emission.name().into(),
         spp: a.spp,
         width: view.width,
         height: view.height,
