@@ -48,11 +48,20 @@ pub fn sample_triangle_above(
 /// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).
 #[inline]
 pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
+    at(v, warp(u1, u2))
+}
+
+/// Barycentric coordinates of the area-uniform warp of `(u1, u2)`.
+#[inline]
+fn warp(u1: f32, u2: f32) -> [f32; 3] {
     let s = u1.sqrt();
-    let b0 = 1.0 - s;
-    let b1 = s * (1.0 - u2);
-    let b2 = s * u2;
-    v[0] * b0 + v[1] * b1 + v[2] * b2
+    [1.0 - s, s * (1.0 - u2), s * u2]
+}
+
+/// The point of triangle `v` with barycentric coordinates `b`.
+#[inline]
+fn at(v: &[Vec3; 3], b: [f32; 3]) -> Vec3 {
+    v[0] * b[0] + v[1] * b[1] + v[2] * b[2]
 }
 
 /// [`sample_triangle`] kept `margin` (a length) away from the triangle's edges, at most a
@@ -61,31 +70,36 @@ pub fn sample_triangle(v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
 /// behind that surface (a floor lit through the foot of the wall standing on it).
 #[inline]
 pub fn sample_triangle_inset(v: &[Vec3; 3], u1: f32, u2: f32, margin: f32) -> Vec3 {
-    let s = u1.sqrt();
-    let mut b = [1.0 - s, s * (1.0 - u2), s * u2];
+    let mut b = warp(u1, u2);
     if b.iter().any(|&x| x < MAX_INSET) {
-        // Barycentric coordinate i is the distance to edge i over the altitude to it.
+        // Barycentric coordinate i is the distance to edge i over the altitude to it,
+        // `2A / |e_i|`: a point is within the margin of edge i when `b_i·2A < margin·|e_i|`,
+        // compared squared (no roots) and a little generously before the exact pass.
         let e = [v[2] - v[1], v[0] - v[2], v[1] - v[0]];
-        let twice_area = e[2].cross(v[2] - v[0]).length();
-        let mut lo = [0.0f32; 3];
-        for i in 0..3 {
-            lo[i] = (margin * e[i].length() / twice_area.max(f32::MIN_POSITIVE)).min(MAX_INSET);
-        }
-        // Raise the coordinates below their floor and take the excess from the others in
-        // proportion to what they have above theirs.
-        let deficit: f32 = (0..3).map(|i| (lo[i] - b[i]).max(0.0)).sum();
-        if deficit > 0.0 {
-            let spare: f32 = (0..3).map(|i| (b[i] - lo[i]).max(0.0)).sum();
+        let cross2 = e[2].cross(v[2] - v[0]).length_squared();
+        let m2 = 1.01 * margin * margin;
+        if (0..3).any(|i| b[i] < MAX_INSET && b[i] * b[i] * cross2 < m2 * e[i].length_squared()) {
+            let twice_area = cross2.sqrt();
+            let mut lo = [0.0f32; 3];
             for i in 0..3 {
-                b[i] = if b[i] <= lo[i] {
-                    lo[i]
-                } else {
-                    b[i] - deficit * (b[i] - lo[i]) / spare
-                };
+                lo[i] = (margin * e[i].length() / twice_area.max(f32::MIN_POSITIVE)).min(MAX_INSET);
+            }
+            // Raise the coordinates below their floor and take the excess from the others in
+            // proportion to what they have above theirs.
+            let deficit: f32 = (0..3).map(|i| (lo[i] - b[i]).max(0.0)).sum();
+            if deficit > 0.0 {
+                let spare: f32 = (0..3).map(|i| (b[i] - lo[i]).max(0.0)).sum();
+                for i in 0..3 {
+                    b[i] = if b[i] <= lo[i] {
+                        lo[i]
+                    } else {
+                        b[i] - deficit * (b[i] - lo[i]) / spare
+                    };
+                }
             }
         }
     }
-    v[0] * b[0] + v[1] * b[1] + v[2] * b[2]
+    at(v, b)
 }
 
 /// Largest barycentric margin [`sample_triangle_inset`] keeps.

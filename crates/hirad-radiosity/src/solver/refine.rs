@@ -20,7 +20,7 @@
 use super::budget::Growth;
 use super::gather::Entry;
 use super::Solver;
-use crate::config::{ClusterEmission, Oracle, Reception};
+use crate::config::Oracle;
 use crate::element::Kind;
 use crate::formfactor::KernelCtx;
 use crate::link::{Deposit, Link, LinkSet, Sample, NO_SAMPLES};
@@ -416,11 +416,10 @@ impl Solver<'_> {
             // crosses the cluster and the hand-out would light surfaces the source cannot
             // see, whatever the transfer's size. A directional cluster hands it to the surfaces
             // whose samples saw the source instead ([`Link::open_members`]); an isotropic one,
-            // which samples no surface, goes down to its children.
+            // which samples no surface (so the kernel names none), goes down to its children.
             if ev.mixed
                 && r.kind == Kind::Cluster
-                && !(self.cfg.cluster_emission == ClusterEmission::Directional
-                    && self.cfg.cluster_receive == Reception::Oriented)
+                && ev.open_members.is_empty()
                 && allow
                 && r.num_children > 0
             {
