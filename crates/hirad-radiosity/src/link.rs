@@ -257,7 +257,7 @@ impl LinkSet {
         }
         // (receiver, source) orders the links completely: the order does not depend on the
         // sort or the thread count.
-        links.par_sort_unstable_by_key(|l| ((l.recv as u64) << 32) | l.src as u64);
+        sort_links(&mut links);
         // Held for the rest of the solve: no spare capacity (the memory budget counts it).
         links.shrink_to_fit();
         kept.shrink_to_fit();
@@ -302,9 +302,89 @@ impl LinkSet {
     }
 }
 
+/// Sort `links` by (receiver, source). A refinement pass keeps most links of the sorted set
+/// before it in their order and adds the new ones: the links below the running maximum are
+/// set aside, sorted and merged back from the end, unless they are more than a quarter of the
+/// whole (then one parallel sort; the set-aside copy would cost too much memory).
+fn sort_links(links: &mut [Link]) {
+    let key = |l: &Link| ((l.recv as u64) << 32) | l.src as u64;
+    let mut max = 0u64;
+    let late = links
+        .iter()
+        .filter(|l| {
+            let k = key(l);
+            max = max.max(k);
+            k < max
+        })
+        .count();
+    if late > links.len() / 4 {
+        links.par_sort_unstable_by_key(key);
+        return;
+    }
+    let mut rest = Vec::with_capacity(late);
+    let mut kept = 0;
+    let mut max = 0u64;
+    for r in 0..links.len() {
+        let l = links[r];
+        let k = key(&l);
+        if k >= max {
+            max = k;
+            links[kept] = l;
+            kept += 1;
+        } else {
+            rest.push(l);
+        }
+    }
+    rest.par_sort_unstable_by_key(key);
+    // Merge from the back: `links[..kept]` and `rest`, both sorted, into `links`.
+    let (mut i, mut j) = (kept, rest.len());
+    for k in (0..links.len()).rev() {
+        if j == 0 {
+            break;
+        }
+        if i > 0 && key(&links[i - 1]) > key(&rest[j - 1]) {
+            links[k] = links[i - 1];
+            i -= 1;
+        } else {
+            links[k] = rest[j - 1];
+            j -= 1;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::Deposit;
+    use super::{sort_links, Deposit, Link};
+    use hirad_core::rng::SplitMix64;
+
+    #[test]
+    fn sort_links_orders_by_receiver_then_source() {
+        let mut rng = SplitMix64::new(7);
+        let mut r = |n: u64| (rng.next_u64() % n) as u32;
+        // A sorted set with new links after it (the merge) and a shuffled one (the full sort).
+        let mut sorted: Vec<Link> = (0..3000).map(|_| Link::new(r(500), r(500))).collect();
+        sorted.sort_by_key(|l| (l.recv, l.src));
+        sorted.dedup_by_key(|l| (l.recv, l.src));
+        let mut extra: Vec<Link> = (0..300).map(|_| Link::new(500 + r(50), r(500))).collect();
+        extra.extend((0..200).map(|_| Link::new(r(500), 500 + r(50))));
+        extra.sort_by_key(|l| (l.recv, l.src));
+        extra.dedup_by_key(|l| (l.recv, l.src));
+        for late in [extra.len(), 0] {
+            let mut links = sorted.clone();
+            links.extend_from_slice(&extra[..late]);
+            let mut want = links.clone();
+            want.sort_by_key(|l| (l.recv, l.src));
+            let mut shuffled = links.clone();
+            for i in (1..shuffled.len()).rev() {
+                shuffled.swap(i, r(i as u64 + 1) as usize);
+            }
+            for mut got in [links, shuffled] {
+                sort_links(&mut got);
+                let keys = |v: &[Link]| v.iter().map(|l| (l.recv, l.src)).collect::<Vec<_>>();
+                assert_eq!(keys(&got), keys(&want));
+            }
+        }
+    }
 
     #[test]
     fn deposit_codes_keep_paths_and_open_rays() {
