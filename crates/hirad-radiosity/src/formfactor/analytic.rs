@@ -23,44 +23,67 @@ pub fn parallel_disk_exact(h: f64, a: f64, radius: f64) -> f64 {
     0.5 * (1.0 - (z - 2.0 * r2) / (z * z - 4.0 * a2 * r2).sqrt())
 }
 
+/// Cephes' rational approximation of `atan` on [−0.42, 0.42]: numerator and denominator.
+const ATAN_P: [f64; 5] = [
+    -8.750_608_600_031_904e-1,
+    -1.615_753_718_733_365e1,
+    -7.500_855_792_314_705e1,
+    -1.228_866_684_490_136e2,
+    -6.485_021_904_942_025e1,
+];
+const ATAN_Q: [f64; 5] = [
+    2.485_846_490_142_306e1,
+    1.650_270_098_316_988_5e2,
+    4.328_810_604_912_903e2,
+    4.853_903_996_359_137e2,
+    1.945_506_571_482_614e2,
+];
+/// tan(3π/8).
+const T3P8: f64 = 2.414_213_562_373_095;
+/// π/2 − fl(π/2).
+const MOREBITS: f64 = 6.123_233_995_736_766e-17;
+
 /// `atan2(y, x)` for `y ≥ 0` (an angle in [0, π]), to about 2 ulp: the Cephes rational
 /// approximation of `atan` with its range reduction. The form factor kernel spends most of its
 /// time here, and libm's correctly rounded `atan2` is several times slower.
 #[inline]
 pub fn angle_from(y: f64, x: f64) -> f64 {
-    const P: [f64; 5] = [
-        -8.750_608_600_031_904e-1,
-        -1.615_753_718_733_365e1,
-        -7.500_855_792_314_705e1,
-        -1.228_866_684_490_136e2,
-        -6.485_021_904_942_025e1,
-    ];
-    const Q: [f64; 5] = [
-        2.485_846_490_142_306e1,
-        1.650_270_098_316_988_5e2,
-        4.328_810_604_912_903e2,
-        4.853_903_996_359_137e2,
-        1.945_506_571_482_614e2,
-    ];
-    const T3P8: f64 = 2.414_213_562_373_095; // tan(3π/8)
-    const MOREBITS: f64 = 6.123_233_995_736_766e-17; // π/2 − fl(π/2)
     if y == 0.0 {
         return if x < 0.0 { PI } else { 0.0 };
     }
-    if x == 0.0 {
-        return PI / 2.0;
-    }
+    // The range reduction selects the numerator and denominator of `z` (`r / 1`, `−1 / r` or
+    // `(r − 1) / (r + 1)`) instead of branching: the ranges are equally likely here, and a
+    // mispredicted branch costs more than the selects. `x = 0` gives `r = ∞`, `z = −0`, π/2.
     let r = y / x.abs();
-    let (y0, z, more) = if r > T3P8 {
-        (PI / 2.0, -1.0 / r, MOREBITS)
-    } else if r <= 0.66 {
-        (0.0, r, 0.0)
+    let big = r > T3P8;
+    let mid = !big && r > 0.66;
+    let (y0, more) = if big {
+        (PI / 2.0, MOREBITS)
+    } else if mid {
+        (PI / 4.0, 0.5 * MOREBITS)
     } else {
-        (PI / 4.0, (r - 1.0) / (r + 1.0), 0.5 * MOREBITS)
+        (0.0, 0.0)
     };
+    let num = if big {
+        -1.0
+    } else if mid {
+        r - 1.0
+    } else {
+        r
+    };
+    let den = if big {
+        r
+    } else if mid {
+        r + 1.0
+    } else {
+        1.0
+    };
+    let z = num / den;
     let zz = z * z;
-    let p = (((P[0] * zz + P[1]) * zz + P[2]) * zz + P[3]) * zz + P[4];
-    let q = ((((zz + Q[0]) * zz + Q[1]) * zz + Q[2]) * zz + Q[3]) * zz + Q[4];
+    let [p0, p1, p2, p3, p4] = ATAN_P;
+    let [q0, q1, q2, q3, q4] = ATAN_Q;
+    let p = (((p0 * zz + p1) * zz + p2) * zz + p3) * zz + p4;
+    let q = ((((zz + q0) * zz + q1) * zz + q2) * zz + q3) * zz + q4;
     let t = y0 + (z * zz * p / q + more) + z;
     if x < 0.0 {
         PI - t
@@ -75,25 +98,53 @@ pub fn angle_from(y: f64, x: f64) -> f64 {
 /// The polygon is clipped to the hemisphere above `x`; zero when `x` lies behind the polygon
 /// (one-sided emission) or the polygon is entirely below the receiver's horizon.
 pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) -> f64 {
-    if poly.len() < 3 || (x - poly[0]).dot(poly_normal) <= 0.0 {
-        return 0.0;
-    }
     let mut buf = [DVec3::ZERO; 16];
-    // Clipped only when part of it lies below the horizon (the polygon as it is otherwise).
-    let pts: &[DVec3] = if poly.iter().all(|&p| n.dot(p - x) >= 0.0) {
-        poly
-    } else {
-        let m = clip_to_hemisphere(x, n, poly, &mut buf);
-        if m < 3 {
-            return 0.0;
-        }
-        &buf[..m]
-    };
+    match facing_part(x, n, poly, poly_normal, &mut buf) {
+        Some(pts) => contour(x, n, pts),
+        None => 0.0,
+    }
+}
+
+/// The part of `poly` that a point at `x` with normal `n` sees of it: `None` when `x` lies
+/// behind the polygon (one-sided emission) or nothing of it is above the horizon; the polygon
+/// itself when all of it is above; else its part above, clipped into `buf`.
+fn facing_part<'a>(
+    x: DVec3,
+    n: DVec3,
+    poly: &'a [DVec3],
+    poly_normal: DVec3,
+    buf: &'a mut [DVec3; 16],
+) -> Option<&'a [DVec3]> {
+    if poly.len() < 3 || (x - poly[0]).dot(poly_normal) <= 0.0 {
+        return None;
+    }
+    if poly.iter().all(|&p| n.dot(p - x) >= 0.0) {
+        return Some(poly);
+    }
+    let m = clip_to_hemisphere(x, n, poly, buf);
+    (m >= 3).then(|| &buf[..m])
+}
+
+/// Lambert's contour sum `Σ_e θ_e (c_e·n)/|c_e|` over the edges of `pts` seen from `x`
+/// (`c_e` the cross product of an edge's ends, `θ_e` the angle between them), over 2π. Four
+/// edges or fewer (every clipped triangle) take the AVX path where the CPU has it: the same
+/// operations lane by lane, so the same bits as [`contour_scalar`].
+fn contour(x: DVec3, n: DVec3, pts: &[DVec3]) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if pts.len() <= 4 && std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the CPU supports AVX (checked above).
+        return unsafe { contour_avx(x, n, pts) };
+    }
+    contour_scalar(x, n, pts)
+}
+
+/// [`contour`], one edge at a time.
+pub(super) fn contour_scalar(x: DVec3, n: DVec3, pts: &[DVec3]) -> f64 {
     let m = pts.len();
     let mut sum = 0.0;
     for e in 0..m {
         let a = pts[e] - x;
-        let b = pts[(e + 1) % m] - x;
+        let b = pts[if e + 1 == m { 0 } else { e + 1 }] - x;
         let c = a.cross(b);
         let cl = c.length();
         if cl <= 0.0 {
@@ -101,6 +152,78 @@ pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &[DVec3], poly_normal: DVec3) 
         }
         let theta = angle_from(cl, a.dot(b));
         sum += theta * c.dot(n) / cl;
+    }
+    (sum.abs() / (2.0 * PI)).min(1.0)
+}
+
+/// [`contour`] for at most four edges, one per AVX lane: glam's cross and dot products and
+/// [`angle_from`] written out with the same operations in the same order, and the edges'
+/// terms summed in edge order.
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+pub(super) unsafe fn contour_avx(x: DVec3, n: DVec3, pts: &[DVec3]) -> f64 {
+    use std::arch::x86_64::*;
+    let m = pts.len();
+    debug_assert!(m <= 4);
+    // [component][edge]: the edge's first and second end relative to x.
+    let (mut a, mut b) = ([[0.0f64; 4]; 3], [[0.0f64; 4]; 3]);
+    for e in 0..m {
+        let p = pts[e] - x;
+        let q = pts[if e + 1 == m { 0 } else { e + 1 }] - x;
+        for (k, (pk, qk)) in [(p.x, q.x), (p.y, q.y), (p.z, q.z)].into_iter().enumerate() {
+            a[k][e] = pk;
+            b[k][e] = qk;
+        }
+    }
+    let (add, sub, mul, div) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd);
+    let splat = _mm256_set1_pd;
+    let [ax, ay, az] = a.map(|v| _mm256_loadu_pd(v.as_ptr()));
+    let [bx, by, bz] = b.map(|v| _mm256_loadu_pd(v.as_ptr()));
+    let cx = sub(mul(ay, bz), mul(by, az));
+    let cy = sub(mul(az, bx), mul(bz, ax));
+    let cz = sub(mul(ax, by), mul(bx, ay));
+    let cl = _mm256_sqrt_pd(add(add(mul(cx, cx), mul(cy, cy)), mul(cz, cz)));
+    let dot = add(add(mul(ax, bx), mul(ay, by)), mul(az, bz));
+    let cn = add(
+        add(mul(cx, splat(n.x)), mul(cy, splat(n.y))),
+        mul(cz, splat(n.z)),
+    );
+    // angle_from(cl, dot), cl > 0 on the lanes that count.
+    let r = div(cl, _mm256_andnot_pd(splat(-0.0), dot));
+    let big = _mm256_cmp_pd::<_CMP_GT_OQ>(r, splat(T3P8));
+    let mid = _mm256_andnot_pd(big, _mm256_cmp_pd::<_CMP_GT_OQ>(r, splat(0.66)));
+    let pick = |low: __m256d, m: __m256d, b: __m256d| {
+        _mm256_blendv_pd(_mm256_blendv_pd(low, m, mid), b, big)
+    };
+    let y0 = pick(splat(0.0), splat(PI / 4.0), splat(PI / 2.0));
+    let more = pick(splat(0.0), splat(0.5 * MOREBITS), splat(MOREBITS));
+    let num = pick(r, sub(r, splat(1.0)), splat(-1.0));
+    let den = pick(splat(1.0), add(r, splat(1.0)), r);
+    let z = div(num, den);
+    let zz = mul(z, z);
+    let mut p = splat(ATAN_P[0]);
+    for &c in &ATAN_P[1..] {
+        p = add(mul(p, zz), splat(c));
+    }
+    let mut q = add(zz, splat(ATAN_Q[0]));
+    for &c in &ATAN_Q[1..] {
+        q = add(mul(q, zz), splat(c));
+    }
+    let t = add(add(y0, add(div(mul(mul(z, zz), p), q), more)), z);
+    let neg = _mm256_cmp_pd::<_CMP_LT_OQ>(dot, splat(0.0));
+    let theta = _mm256_blendv_pd(t, sub(splat(PI), t), neg);
+    let term = div(mul(theta, cn), cl);
+    let (mut terms, mut lens) = ([0.0f64; 4], [0.0f64; 4]);
+    _mm256_storeu_pd(terms.as_mut_ptr(), term);
+    _mm256_storeu_pd(lens.as_mut_ptr(), cl);
+    let mut sum = 0.0;
+    for e in 0..m {
+        if lens[e] > 0.0 {
+            sum += terms[e];
+        }
     }
     (sum.abs() / (2.0 * PI)).min(1.0)
 }

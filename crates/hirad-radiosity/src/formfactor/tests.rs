@@ -191,3 +191,35 @@ fn inset_points_keep_their_margin_from_the_edges() {
         "{moved} points moved, expected about {expected}"
     );
 }
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn contour_avx_gives_the_bits_of_the_scalar_sum() {
+    use super::analytic::{contour_avx, contour_scalar};
+    if !std::arch::is_x86_feature_detected!("avx") {
+        return;
+    }
+    let mut rng = hirad_core::rng::SplitMix64::new(11);
+    let mut v = |s: f64| {
+        let e = (rng.next_u64() % 12) as i32 - 6;
+        DVec3::new(
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+            rng.next_f64() - 0.5,
+        ) * s
+            * 2f64.powi(e)
+    };
+    for i in 0..200_000 {
+        let m = 3 + i % 2;
+        let pts: Vec<DVec3> = (0..m).map(|_| v(1.0)).collect();
+        let x = if i % 7 == 0 { pts[0] } else { v(4.0) };
+        let n = v(1.0).normalize_or(DVec3::Z);
+        // SAFETY: AVX is present (checked above).
+        let fast = unsafe { contour_avx(x, n, &pts) };
+        assert_eq!(
+            fast.to_bits(),
+            contour_scalar(x, n, &pts).to_bits(),
+            "{pts:?} {x} {n}"
+        );
+    }
+}
