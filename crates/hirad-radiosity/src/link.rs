@@ -233,11 +233,13 @@ impl LinkSet {
 
     /// Sort `links` by (receiver, source) and build the groups; `samples` holds the samples the
     /// links refer to (`per_link` each) and `open` their open surfaces' runs, compacted here
-    /// to those of the links kept.
+    /// to those of the links kept. The sort sets aside at most `max_late` links beside them
+    /// (see `sort_links`).
     pub fn from_links(
         mut links: Vec<Link>,
         (samples, open): (&[Sample], &[Sample]),
         per_link: u32,
+        max_late: usize,
     ) -> LinkSet {
         let pl = per_link as usize;
         let mut kept = Vec::new();
@@ -257,7 +259,7 @@ impl LinkSet {
         }
         // (receiver, source) orders the links completely: the order does not depend on the
         // sort or the thread count.
-        sort_links(&mut links);
+        sort_links(&mut links, max_late);
         // Held for the rest of the solve: no spare capacity (the memory budget counts it).
         links.shrink_to_fit();
         kept.shrink_to_fit();
@@ -305,8 +307,9 @@ impl LinkSet {
 /// Sort `links` by (receiver, source). A refinement pass keeps most links of the sorted set
 /// before it in their order and adds the new ones: the links below the running maximum are
 /// set aside, sorted and merged back from the end, unless they are more than a quarter of the
-/// whole (then one parallel sort; the set-aside copy would cost too much memory).
-fn sort_links(links: &mut [Link]) {
+/// whole or more than `max_late` (then one parallel sort, in place: the set-aside copy would
+/// cost more memory than it saves time, or than a memory budget leaves).
+fn sort_links(links: &mut [Link], max_late: usize) {
     let key = |l: &Link| ((l.recv as u64) << 32) | l.src as u64;
     let mut max = 0u64;
     let late = links
@@ -317,7 +320,7 @@ fn sort_links(links: &mut [Link]) {
             k < max
         })
         .count();
-    if late > links.len() / 4 {
+    if late > (links.len() / 4).min(max_late) {
         links.par_sort_unstable_by_key(key);
         return;
     }
@@ -378,8 +381,9 @@ mod tests {
             for i in (1..shuffled.len()).rev() {
                 shuffled.swap(i, r(i as u64 + 1) as usize);
             }
-            for mut got in [links, shuffled] {
-                sort_links(&mut got);
+            // usize::MAX: merge where few are out of order; 0: always the full sort.
+            for (mut got, max_late) in [(links.clone(), usize::MAX), (links, 0), (shuffled, 99)] {
+                sort_links(&mut got, max_late);
                 let keys = |v: &[Link]| v.iter().map(|l| (l.recv, l.src)).collect::<Vec<_>>();
                 assert_eq!(keys(&got), keys(&want));
             }

@@ -83,7 +83,15 @@ impl Solver<'_> {
             }
             frontier = next;
         }
-        self.set = LinkSet::from_links(done, (&samples, &open), per_link);
+        // Under a memory budget, the links the sort sets aside stay within what a chunk's
+        // decisions held (counted in the budget's projection, `Solver::projected`).
+        let max_late = match self.cfg.max_memory {
+            Some(_) => {
+                REFINE_CHUNK * (size_of::<Link>() + size_of::<Decided>()) / size_of::<Link>()
+            }
+            None => usize::MAX,
+        };
+        self.set = LinkSet::from_links(done, (&samples, &open), per_link, max_late);
         self.note_peak();
         Ok(())
     }
