@@ -257,3 +257,69 @@ fn too_small_a_memory_budget_exits_2_naming_the_size() {
     let peak = st["memory"]["peak_counted_bytes"].as_u64().unwrap();
     assert!(peak <= give * 1_000_000, "{peak} > {give} MB");
 }
+
+/// `solve --export-rays` writes a share of the solver's shadow segments that `raybench
+/// --segments` casts (every strategy finds the same occluded count, and the file holds about
+/// one in 16 of the solve's rays, the same whatever the thread count); a file made for
+/// another scene exits 2 naming it.
+#[test]
+fn solver_rays_are_exported_for_raybench() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("rays.bin");
+    let f1 = d.path().join("rays1.bin");
+    let solve = |threads: &str, file: &std::path::Path| {
+        let o = hirad()
+            .args(["-q", "--threads", threads, "solve", "cornell", "--bench"])
+            .arg("--export-rays")
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let st: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        st["rays"].as_u64().unwrap()
+    };
+    let rays = solve("2", &f);
+    solve("1", &f1);
+    assert_eq!(std::fs::read(&f).unwrap(), std::fs::read(&f1).unwrap());
+    let o = hirad()
+        .args([
+            "-q",
+            "--json",
+            "raybench",
+            "cornell",
+            "--clustering",
+            "sah,proxi,kdt",
+        ])
+        .arg("--segments")
+        .arg(&f)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rb: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let n = rb["pairs"].as_u64().unwrap();
+    // The share is chosen by a hash of the end points: about 1/16 of the rays between link
+    // ends (sky and sun rays are not among them).
+    assert!(n * 16 > rays / 2 && n * 16 < rays * 2, "{n} of {rays}");
+    assert_eq!(rb["counts_agree"], true);
+    let occ: Vec<u64> = rb["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["occluded"].as_u64().unwrap())
+        .collect();
+    assert!(
+        occ.iter().all(|&c| c == occ[0] && c > 0 && c < n),
+        "{occ:?}"
+    );
+    let o = hirad()
+        .args(["-q", "raybench", "office", "--segments"])
+        .arg(&f)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("rays.bin") && err.contains("triangles"),
+        "{err}"
+    );
+}

@@ -32,5 +32,5 @@ pub mod stats;
 pub mod visibility;
 
 pub use config::{ClusterEmission, Oracle, Reception, SolverConfig, VisibilityMode};
-pub use solver::{solve, solve_cancellable, Solution};
+pub use solver::{solve, solve_cancellable, solve_recording, Solution};
 pub use stats::SolveStats;

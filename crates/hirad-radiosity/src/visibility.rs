@@ -11,9 +11,11 @@ use super::config::VisibilityMode;
 use glam::Vec3;
 use hirad_accel::cluster::ClusterTree;
 use hirad_accel::ray::volume::{Endpoint, VolumeCaster};
-use hirad_accel::ray::RayCaster;
+use hirad_accel::ray::{RayCaster, Segment};
 use hirad_core::Result;
 use hirad_scene::Scene;
+use std::hash::Hasher;
+use std::sync::Mutex;
 
 /// Visibility oracle of a solve.
 pub struct Visibility<'a> {
@@ -28,6 +30,8 @@ pub struct Visibility<'a> {
     pub vol_ratio: f32,
     /// Rounding scale of the scene's coordinates ([`Visibility::eps`]).
     eps: f32,
+    /// Shadow segments kept for benchmarks ([`Visibility::record`]): one in `.0`.
+    record: Option<(u64, Mutex<Vec<Segment>>)>,
 }
 
 impl<'a> Visibility<'a> {
@@ -49,7 +53,45 @@ impl<'a> Visibility<'a> {
                 let c = scene.bbox.min.abs().max(scene.bbox.max.abs()).max_element();
                 EPS_REL * if c.is_finite() { c.max(1e-6) } else { 1.0 }
             },
+            record: None,
         })
+    }
+
+    /// Keep one in `every` of the segments cast by [`Visibility::transmittance`] with rays,
+    /// chosen by a hash of their end points (so the same ones whatever the thread count).
+    pub fn record(&mut self, every: u32) {
+        self.record = Some((every.max(1) as u64, Default::default()));
+    }
+
+    /// The segments kept ([`Visibility::record`]), sorted by their bits.
+    pub fn recorded(&self) -> Vec<Segment> {
+        let Some((_, m)) = &self.record else {
+            return Vec::new();
+        };
+        let mut v = m.lock().map(|v| v.clone()).unwrap_or_default();
+        let key = |s: &Segment| [s.origin, s.dir].map(|p| p.to_array().map(f32::to_bits));
+        v.sort_unstable_by_key(key);
+        v
+    }
+
+    /// Keep segment `x + t (y − x)`, `t ∈ range`, when a hash of its end points is a multiple
+    /// of `every`.
+    #[cold]
+    fn keep(&self, every: u64, m: &Mutex<Vec<Segment>>, x: Vec3, y: Vec3, range: (f32, f32)) {
+        let mut h = hirad_core::hash::U64Hasher::default();
+        for c in [x, y].iter().flat_map(|p| p.to_array()) {
+            h.write_u64(c.to_bits() as u64);
+        }
+        if h.finish().is_multiple_of(every) {
+            if let Ok(mut v) = m.lock() {
+                v.push(Segment {
+                    origin: x,
+                    dir: y - x,
+                    tmin: range.0,
+                    tmax: range.1,
+                });
+            }
+        }
     }
 
     /// Bytes of the ray layout, the subtree ranks and the volume data.
@@ -76,8 +118,23 @@ impl<'a> Visibility<'a> {
     /// [`Visibility::eps`] at each end.
     #[inline]
     pub fn between(&self, x: Vec3, y: Vec3, a: Endpoint, b: Endpoint) -> f64 {
+        self.between_cached(x, y, a, b, &mut None)
+    }
+
+    /// [`Visibility::between`] for one of several rays between the same ends: `last` holds
+    /// the triangle that blocked an earlier ray, which this ray tests first, and takes the
+    /// one that blocks it. Same answer as without the cache.
+    #[inline]
+    pub fn between_cached(
+        &self,
+        x: Vec3,
+        y: Vec3,
+        a: Endpoint,
+        b: Endpoint,
+        last: &mut Option<u32>,
+    ) -> f64 {
         let t = (self.eps / (y - x).length().max(f32::MIN_POSITIVE)).min(0.25);
-        self.transmittance(x, y, t, 1.0 - t, a, b)
+        self.transmittance_cached(x, y, (t, 1.0 - t), (a, b), last)
     }
 
     /// The mode in use.
@@ -114,6 +171,19 @@ impl<'a> Visibility<'a> {
         a: Endpoint,
         b: Endpoint,
     ) -> f64 {
+        self.transmittance_cached(x, y, (t0, t1), (a, b), &mut None)
+    }
+
+    /// [`Visibility::transmittance`] with the shadow cache of [`Visibility::between_cached`].
+    #[inline]
+    fn transmittance_cached(
+        &self,
+        x: Vec3,
+        y: Vec3,
+        (t0, t1): (f32, f32),
+        (a, b): (Endpoint, Endpoint),
+        last: &mut Option<u32>,
+    ) -> f64 {
         match (self.mode, &self.volume) {
             (VisibilityMode::None, _) => 1.0,
             (VisibilityMode::Volume, Some(v)) => {
@@ -122,11 +192,17 @@ impl<'a> Visibility<'a> {
             _ => {
                 let skip = |t: u32| self.in_end(a, t) || self.in_end(b, t);
                 if t0 >= t1 {
-                    1.0
-                } else if self.caster.occluded_except(x, y - x, (t0, t1), &skip) {
-                    0.0
-                } else {
-                    1.0
+                    return 1.0;
+                }
+                if let Some((every, m)) = &self.record {
+                    self.keep(*every, m, x, y, (t0, t1));
+                }
+                match self.caster.occluder(x, y - x, (t0, t1), &skip, *last) {
+                    Some(tri) => {
+                        *last = Some(tri);
+                        0.0
+                    }
+                    None => 1.0,
                 }
             }
         }

@@ -169,7 +169,10 @@ impl Lane {
             }
             self.len += mask.count_ones();
         }
-        if nt > 0 && l.any_hit(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false) {
+        if nt > 0
+            && l.any_hit(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false)
+                .is_some()
+        {
             return Step::Hit;
         }
         if self.len > 0 {
@@ -250,9 +253,17 @@ impl<'a> RayCaster<'a> {
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
-        self.occluded_impl::<false, _>(origin, dir, tmin, tmax, &mut RayStats::default(), &|_| {
-            false
-        })
+        let none = &|_| false;
+        self.occluded_impl::<false, _>(
+            origin,
+            dir,
+            tmin,
+            tmax,
+            &mut RayStats::default(),
+            none,
+            None,
+        )
+        .is_some()
     }
 
     /// True when some triangle `t` with `!skip(t)` is hit for `t ∈ [tmin, tmax]` (the
@@ -265,7 +276,25 @@ impl<'a> RayCaster<'a> {
         (tmin, tmax): (f32, f32),
         skip: &F,
     ) -> bool {
-        self.occluded_impl::<false, F>(origin, dir, tmin, tmax, &mut RayStats::default(), skip)
+        self.occluder(origin, dir, (tmin, tmax), skip, None)
+            .is_some()
+    }
+
+    /// [`RayCaster::occluded_except`] that returns the triangle found (its id) and tests
+    /// triangle `hint` first: the several rays of one link are often blocked by the same
+    /// triangle (a shadow cache, Haines & Greenberg 1986). The answer does not depend on the
+    /// hint.
+    #[inline]
+    pub fn occluder<F: Fn(u32) -> bool>(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        (tmin, tmax): (f32, f32),
+        skip: &F,
+        hint: Option<u32>,
+    ) -> Option<u32> {
+        let st = &mut RayStats::default();
+        self.occluded_impl::<false, F>(origin, dir, tmin, tmax, st, skip, hint)
     }
 
     /// The closest hit for `t ∈ [tmin, tmax]`.
@@ -284,7 +313,8 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
     ) -> bool {
         stats.rays += 1;
-        self.occluded_impl::<true, _>(origin, dir, tmin, tmax, stats, &|_| false)
+        self.occluded_impl::<true, _>(origin, dir, tmin, tmax, stats, &|_| false, None)
+            .is_some()
     }
 
     /// [`RayCaster::closest`] that also adds its traversal counters to `stats`.
@@ -489,7 +519,10 @@ impl<'a> RayCaster<'a> {
         best
     }
 
+    /// The occlusion query: a triangle hit (its id) or `None`. With a `hint`, that triangle
+    /// is tested first (unless `skip` leaves it out).
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn occluded_impl<const STATS: bool, F: Fn(u32) -> bool>(
         &self,
         origin: Vec3,
@@ -498,23 +531,29 @@ impl<'a> RayCaster<'a> {
         tmax: f32,
         stats: &mut RayStats,
         skip: &F,
-    ) -> bool {
+        hint: Option<u32>,
+    ) -> Option<u32> {
         let l = &self.layout;
-        let Some(root) = l.root else {
-            return false;
-        };
-        let Some(r) = RayPre::new(origin, dir) else {
-            return false;
-        };
+        let root = l.root?;
+        let r = RayPre::new(origin, dir)?;
         if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
-            return false;
+            return None;
+        }
+        if let Some(h) = hint {
+            if (h as usize) < self.scene.num_triangles() && !skip(h) {
+                let v = self.scene.tri_vertices(h as usize);
+                let v = [
+                    v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z,
+                ];
+                if intersect(&r, &v, tmin, tmax).is_some() {
+                    return Some(h);
+                }
+            }
         }
         if STATS {
             stats.boxes += 1;
         }
-        if r.slab(&l.root_box, tmin, tmax).is_none() {
-            return false;
-        }
+        r.slab(&l.root_box, tmin, tmax)?;
         let r4 = Ray4::new(&r);
         let mut stack: Stack<u32, STACK> = Stack::new();
         stack.push(root);
@@ -535,11 +574,14 @@ impl<'a> RayCaster<'a> {
                 g.rank_first(&mut tn);
                 push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
             }
-            if nt > 0 && l.any_hit(&r, (ts, nt), tmin, tmax, &mut stats.tris, skip) {
-                return true;
+            if nt > 0 {
+                let hit = l.any_hit(&r, (ts, nt), tmin, tmax, &mut stats.tris, skip);
+                if hit.is_some() {
+                    return hit;
+                }
             }
         }
-        false
+        None
     }
 
     #[inline(always)]

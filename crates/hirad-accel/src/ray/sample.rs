@@ -162,3 +162,51 @@ pub fn export_segments(
         Ok(())
     })
 }
+
+/// Read the segments of a file in the exchange format of [`export_segments`] (written by
+/// `hirad raybench --export` or `hirad solve --export-rays`), checking that its triangles are
+/// those of `scene`.
+pub fn import_segments(path: &std::path::Path, scene: &Scene) -> hirad_core::Result<Vec<Segment>> {
+    use hirad_core::Error;
+    let bytes = std::fs::read(path).map_err(|err| Error::Io {
+        path: path.to_path_buf(),
+        err,
+    })?;
+    let bad = |msg: &str| Error::input(path, msg.to_string());
+    let mut words = bytes.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
+    let mut next = || words.next().ok_or_else(|| bad("file ends early"));
+    let nt = u32::from_le_bytes(next()?) as usize;
+    if nt != scene.num_triangles() {
+        return Err(bad(&format!(
+            "{nt} triangles, but the scene has {}",
+            scene.num_triangles()
+        )));
+    }
+    for i in 0..nt {
+        for c in scene.tri_vertices(i) {
+            for x in c.to_array() {
+                if f32::from_le_bytes(next()?).to_bits() != x.to_bits() {
+                    return Err(bad(&format!("triangle {i} differs from the scene's")));
+                }
+            }
+        }
+    }
+    let ns = u32::from_le_bytes(next()?) as usize;
+    let mut segs = Vec::with_capacity(ns.min(bytes.len() / 32));
+    for _ in 0..ns {
+        let mut v = [0f32; 8];
+        for x in &mut v {
+            *x = f32::from_le_bytes(next()?);
+        }
+        segs.push(Segment {
+            origin: glam::Vec3::new(v[0], v[1], v[2]),
+            dir: glam::Vec3::new(v[3], v[4], v[5]),
+            tmin: v[6],
+            tmax: v[7],
+        });
+    }
+    if next().is_ok() {
+        return Err(bad("data after the last segment"));
+    }
+    Ok(segs)
+}

@@ -46,6 +46,11 @@ pub struct Args {
     /// u32 segment count, 8 f32 per segment: origin, direction, tmin, tmax) [default: none]
     #[arg(long, value_name = "FILE")]
     pub export: Option<std::path::PathBuf>,
+    /// Cast the segments of FILE (the format of `--export`, e.g. the shadow rays written by
+    /// `hirad solve --export-rays`) instead of random ones; its triangles must be the
+    /// scene's. `--pairs` and `--seed` are then ignored [default: none]
+    #[arg(long, value_name = "FILE", conflicts_with = "export")]
+    pub segments: Option<std::path::PathBuf>,
 }
 
 /// Result of one strategy.
@@ -108,7 +113,10 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let boxes = Boxes::parse(&args.boxes)?;
     let scene = super::load_scene(&args.scene, &SceneOptions::default())?;
     let t0 = Instant::now();
-    let segs = sample::sample_segments(&scene, args.pairs, args.seed);
+    let segs = match &args.segments {
+        Some(p) => sample::import_segments(p, &scene)?,
+        None => sample::sample_segments(&scene, args.pairs, args.seed),
+    };
     let sample_ms = t0.elapsed().as_secs_f64() * 1e3;
     if let Some(p) = &args.export {
         sample::export_segments(p, &scene, &segs)?;

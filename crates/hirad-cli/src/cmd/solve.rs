@@ -9,7 +9,7 @@ use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::{NoProgress, Progress};
 use hirad::radiosity::config::parse_bytes;
 use hirad::radiosity::{
-    memory, output, solve_cancellable, ClusterEmission, Oracle, Reception, SolverConfig,
+    memory, output, solve_recording, ClusterEmission, Oracle, Reception, SolverConfig,
     VisibilityMode,
 };
 use std::path::PathBuf;
@@ -52,7 +52,16 @@ pub struct Args {
     /// Benchmark: solve, print the statistics as JSON, write no files.
     #[arg(long)]
     pub bench: bool,
+    /// Also write the scene's triangles and one in 16 of the solve's shadow segments to FILE,
+    /// in the format of `hirad raybench --export`, for timing the solver's own rays
+    /// (`raybench --segments`, `benches/embree/`); they are held in memory until the end, 32
+    /// bytes each [default: none]
+    #[arg(long, value_name = "FILE")]
+    pub export_rays: Option<PathBuf>,
 }
+
+/// `--export-rays` keeps one in this many shadow segments.
+const EXPORT_EVERY: u32 = 16;
 
 /// The flags that set up a solve, shared by `solve` and `validate`.
 #[derive(clap::Args, Debug)]
@@ -211,7 +220,12 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     }
     let bars = Bars::new(g.quiet || args.bench || g.json);
     let progress: &dyn Progress = if g.quiet { &NoProgress } else { &bars };
-    let mut sol = solve_cancellable(&scene, &tree, &cfg, progress, &cancel)?;
+    let every = args.export_rays.as_ref().map(|_| EXPORT_EVERY);
+    let (mut sol, rays) = solve_recording(&scene, &tree, &cfg, progress, &cancel, every)?;
+    if let Some(p) = &args.export_rays {
+        hirad::ray::sample::export_segments(p, &scene, &rays)?;
+        tracing::info!("{} shadow segments written to {}", rays.len(), p.display());
+    }
     let st = &sol.stats;
     if args.bench {
         let mut v = serde_json::to_value(st)?;

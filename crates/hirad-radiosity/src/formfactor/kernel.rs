@@ -382,6 +382,8 @@ impl KernelCtx<'_> {
             };
         }
         let mut n_open = 0usize;
+        // The triangle that blocked the last blocked ray (`Visibility::between_cached`).
+        let mut last = None;
         // (receiver point, source point) of the samples whose rays were open.
         let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
         // Receiver points of the samples that count, and whether their rays were open.
@@ -498,7 +500,7 @@ impl KernelCtx<'_> {
                 if self.covered(ey, ny, y) {
                     0.0
                 } else {
-                    self.segment(x, ex, y, ey)
+                    self.vis.between_cached(x, y, ex, ey, &mut last)
                 }
             } else {
                 0.0
@@ -633,11 +635,6 @@ impl KernelCtx<'_> {
             Endpoint::Surface(tri) => self.covers.covered(tri, n, p),
             _ => false,
         }
-    }
-
-    /// Visibility of the segment x → y: every surface but the ends `a` and `b` can occlude.
-    pub(super) fn segment(&self, x: Vec3, a: Endpoint, y: Vec3, b: Endpoint) -> f64 {
-        self.vis.between(x, y, a, b)
     }
 
     /// A sample point of triangle `v` from two numbers in [0, 1), away from its edges by

@@ -136,6 +136,7 @@ impl KernelCtx<'_> {
         // proportion to the form factor, the other end uniform over its part in front).
         let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
+        let mut last = None;
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
@@ -145,7 +146,7 @@ impl KernelCtx<'_> {
             let vis = if self.covered(oe, on, y) {
                 0.0
             } else {
-                self.segment(x, ge, y, oe)
+                self.vis.between_cached(x, y, ge, oe, &mut last)
             };
             vis_sum += vis;
             vmin = vmin.min(vis);

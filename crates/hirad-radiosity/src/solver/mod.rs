@@ -27,6 +27,7 @@ use super::stats::{self, IterStat, SolveStats};
 use super::visibility::Visibility;
 use glam::{DVec3, Vec3};
 use hirad_accel::cluster::ClusterTree;
+use hirad_accel::ray::Segment;
 use hirad_core::progress::Progress;
 use hirad_core::{Error, Result};
 use hirad_scene::Scene;
@@ -96,6 +97,20 @@ pub fn solve_cancellable(
     progress: &dyn Progress,
     cancel: &AtomicBool,
 ) -> Result<Solution> {
+    Ok(solve_recording(scene, tree, cfg, progress, cancel, None)?.0)
+}
+
+/// [`solve_cancellable`] that also returns one in `every` of the shadow segments cast between
+/// link ends (chosen by a hash of their end points, sorted; none when `every` is `None`): the
+/// solver's rays for ray-casting benchmarks (`hirad solve --export-rays`).
+pub fn solve_recording(
+    scene: &Scene,
+    tree: &ClusterTree,
+    cfg: &SolverConfig,
+    progress: &dyn Progress,
+    cancel: &AtomicBool,
+    every: Option<u32>,
+) -> Result<(Solution, Vec<Segment>)> {
     cfg.validate()?;
     if tree.surface_node.len() != scene.num_triangles() {
         return Err(Error::Config(format!(
@@ -105,7 +120,10 @@ pub fn solve_cancellable(
         )));
     }
     let t_start = Instant::now();
-    let vis = Visibility::new(scene, tree, cfg.visibility, cfg.vol_ratio)?;
+    let mut vis = Visibility::new(scene, tree, cfg.visibility, cfg.vol_ratio)?;
+    if let Some(k) = every {
+        vis.record(k);
+    }
     // The budget's fixed part: checked before the overlaps are searched, and again with them
     // and the element arena before refinement.
     let fixed = (scene.memory_bytes() + tree.memory_bytes() + vis.memory_bytes()) as u64
@@ -135,7 +153,8 @@ pub fn solve_cancellable(
     s.note_peak();
     s.stats.time.setup = t_start.elapsed().as_secs_f64();
     s.run(progress, cancel, t_start)?;
-    s.finish(t_start)
+    let sol = s.finish(t_start)?;
+    Ok((sol, vis.recorded()))
 }
 
 struct Solver<'a> {

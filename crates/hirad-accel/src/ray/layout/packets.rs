@@ -71,8 +71,8 @@ pub(in crate::ray) fn lane_mask<const W: usize>(n: usize, k: usize) -> u32 {
 }
 
 impl Layout {
-    /// True when a triangle of the run `(ps, n)` that `skip` does not leave out is hit in
-    /// `[tmin, tmax]`. Adds the triangles tested to `*tested`.
+    /// A triangle of the run `(ps, n)` that `skip` does not leave out and that is hit in
+    /// `[tmin, tmax]` (its id), if any. Adds the triangles tested to `*tested`.
     #[inline(always)]
     pub(in crate::ray) fn any_hit<F: Fn(u32) -> bool>(
         &self,
@@ -82,7 +82,7 @@ impl Layout {
         tmax: f32,
         tested: &mut u64,
         skip: &F,
-    ) -> bool {
+    ) -> Option<u32> {
         if n >= WIDE_MIN {
             return self.any_hit_wide(r, ps, n, tmin, tmax, tested, skip);
         }
@@ -90,18 +90,19 @@ impl Layout {
             let p = &self.packets[ps + k];
             let valid = lane_mask::<4>(n, k);
             *tested += valid.count_ones() as u64;
-            if any_of(
+            let hit = any_of(
                 r,
                 &p.v,
                 &p.id,
                 candidates4(r, &p.v) & valid,
                 (tmin, tmax),
                 skip,
-            ) {
-                return true;
+            );
+            if hit.is_some() {
+                return hit;
             }
         }
-        false
+        None
     }
 
     /// Closest hit among the triangles of the run `(ps, n)` nearer than `*best_t`: updates
@@ -144,18 +145,19 @@ impl Layout {
         tmax: f32,
         tested: &mut u64,
         skip: &F,
-    ) -> bool {
+    ) -> Option<u32> {
         let avx512 = has_avx512();
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
             let valid = lane_mask::<16>(n, k);
             *tested += valid.count_ones() as u64;
             let m = wide_candidates(r, w, valid, avx512);
-            if any_of(r, &w.v, &w.id, m, (tmin, tmax), skip) {
-                return true;
+            let hit = any_of(r, &w.v, &w.id, m, (tmin, tmax), skip);
+            if hit.is_some() {
+                return hit;
             }
         }
-        false
+        None
     }
 }
 
@@ -175,8 +177,8 @@ pub(super) fn put<const N: usize>(
     ids[lane] = id;
 }
 
-/// True when one of the candidate lanes `m` of a packet (four or sixteen wide) whose triangle
-/// `skip` does not leave out is hit in `[tmin, tmax]`.
+/// The first of the candidate lanes `m` of a packet (four or sixteen wide) whose triangle
+/// `skip` does not leave out and is hit in `[tmin, tmax]` (its id), if any.
 #[inline(always)]
 pub(super) fn any_of<const N: usize, F: Fn(u32) -> bool>(
     r: &RayPre,
@@ -185,15 +187,15 @@ pub(super) fn any_of<const N: usize, F: Fn(u32) -> bool>(
     mut m: u32,
     (tmin, tmax): (f32, f32),
     skip: &F,
-) -> bool {
+) -> Option<u32> {
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
         if !skip(ids[i]) && intersect(r, &tri_of(v, i), tmin, tmax).is_some() {
-            return true;
+            return Some(ids[i]);
         }
     }
-    false
+    None
 }
 
 /// Closest hit among the candidate lanes `m` of a packet (four or sixteen wide) nearer than
