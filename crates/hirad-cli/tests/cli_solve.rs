@@ -322,4 +322,24 @@ fn solver_rays_are_exported_for_raybench() {
         err.contains("rays.bin") && err.contains("triangles"),
         "{err}"
     );
+    // Volume visibility casts no shadow rays: nothing to export.
+    let o = hirad()
+        .args([
+            "-q",
+            "solve",
+            "cornell",
+            "--bench",
+            "--visibility",
+            "volume",
+        ])
+        .arg("--export-rays")
+        .arg(d.path().join("v.bin"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--export-rays") && err.contains("volume"),
+        "{err}"
+    );
 }

@@ -114,7 +114,13 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let scene = super::load_scene(&args.scene, &SceneOptions::default())?;
     let t0 = Instant::now();
     let segs = match &args.segments {
-        Some(p) => sample::import_segments(p, &scene)?,
+        Some(p) => {
+            let segs = sample::import_segments(p, &scene)?;
+            if segs.is_empty() {
+                return Err(hirad::Error::input(p, "no segments").into());
+            }
+            segs
+        }
         None => sample::sample_segments(&scene, args.pairs, args.seed),
     };
     let sample_ms = t0.elapsed().as_secs_f64() * 1e3;

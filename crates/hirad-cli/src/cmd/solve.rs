@@ -185,6 +185,13 @@ impl SolverArgs {
 
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let mut cfg = args.solver.config(args.seed)?;
+    if args.export_rays.is_some() && cfg.visibility != VisibilityMode::Rays {
+        return Err(hirad::Error::Config(format!(
+            "--export-rays writes shadow rays, which --visibility {} does not cast",
+            cfg.visibility.name()
+        ))
+        .into());
+    }
     let strategy = Strategy::parse(&args.solver.clustering)?;
     let opts = args.reflectance.options(args.camera.scene_up());
     let scene = super::load_scene(&args.scene, &opts)?;
