@@ -301,6 +301,7 @@ fn solver_rays_are_exported_for_raybench() {
     // ends (sky and sun rays are not among them).
     assert!(n * 16 > rays / 2 && n * 16 < rays * 2, "{n} of {rays}");
     assert_eq!(rb["counts_agree"], true);
+    assert!(rb["segments"].as_str().unwrap().ends_with("rays.bin"));
     let occ: Vec<u64> = rb["rows"]
         .as_array()
         .unwrap()

@@ -89,7 +89,10 @@ struct Report {
     scene: String,
     triangles: usize,
     pairs: usize,
+    /// Seed of the random segments (unused with `segments`).
     seed: u64,
+    /// File the segments were read from (`--segments`), if any.
+    segments: Option<std::path::PathBuf>,
     boxes: Boxes,
     threads: usize,
     hirad_version: &'static str,
@@ -245,6 +248,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         triangles: scene.num_triangles(),
         pairs: segs.len(),
         seed: args.seed,
+        segments: args.segments.clone(),
         boxes,
         threads: rayon::current_num_threads(),
         hirad_version: hirad::VERSION,
@@ -266,12 +270,14 @@ fn opt(x: Option<f64>, prec: usize) -> String {
 }
 
 fn print_table(r: &Report) {
+    let source = match &r.segments {
+        Some(f) => format!("{} segments from {}", r.pairs, f.display()),
+        None => format!("{} pairs, seed {}", r.pairs, r.seed),
+    };
     println!(
-        "scene {} ({} triangles), {} pairs, seed {}, {} boxes, {} thread(s), sampling {:.1} ms",
+        "scene {} ({} triangles), {source}, {} boxes, {} thread(s), sampling {:.1} ms",
         r.scene,
         r.triangles,
-        r.pairs,
-        r.seed,
         r.boxes.name(),
         r.threads,
         r.sample_ms
