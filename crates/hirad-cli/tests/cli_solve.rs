@@ -13,6 +13,14 @@ fn ok(cmd: &mut Command) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
+/// Run `cmd`, check that it exits with 2, and return its stderr.
+fn exit2(cmd: &mut Command) -> String {
+    let o = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    err
+}
+
 /// `solve --eye --target --up --fov --size` makes the image `render` makes of the solution from
 /// that view, and it differs from the default view's.
 #[test]
@@ -141,13 +149,11 @@ fn choices_parse_in_any_case() {
         "Rays",
         "--bench",
     ]));
-    let o = hirad()
-        .args(["-q", "solve", "cornell", "--clustering", "all", "--out"])
-        .arg(d.path())
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = exit2(
+        hirad()
+            .args(["-q", "solve", "cornell", "--clustering", "all", "--out"])
+            .arg(d.path()),
+    );
     assert!(err.contains("unknown clustering strategy 'all'"), "{err}");
     assert!(!err.contains(", all"), "{err}");
     ok(hirad().args(["-q", "clusters", "cornell", "--clustering", "ALL"]));
@@ -156,9 +162,7 @@ fn choices_parse_in_any_case() {
 /// `hirad study` without a scene is a usage error: exit 2.
 #[test]
 fn study_without_a_scene_exits_2() {
-    let o = hirad().args(["-q", "study"]).output().unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = exit2(hirad().args(["-q", "study"]));
     assert!(err.contains("a scene is required"), "{err}");
 }
 
@@ -220,22 +224,20 @@ fn every_option_shows_its_default() {
 fn too_small_a_memory_budget_exits_2_naming_the_size() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("s");
-    let o = hirad()
-        .args([
-            "-q",
-            "solve",
-            "office",
-            "--preset",
-            "fast",
-            "--max-memory",
-            "10MB",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = exit2(
+        hirad()
+            .args([
+                "-q",
+                "solve",
+                "office",
+                "--preset",
+                "fast",
+                "--max-memory",
+                "10MB",
+                "--out",
+            ])
+            .arg(&out),
+    );
     assert!(!out.exists());
     // "... is below the N MB that the scene needs ...; give at least M MB"
     let mb = |after: &str| -> u64 {
@@ -312,33 +314,29 @@ fn solver_rays_are_exported_for_raybench() {
         occ.iter().all(|&c| c == occ[0] && c > 0 && c < n),
         "{occ:?}"
     );
-    let o = hirad()
-        .args(["-q", "raybench", "office", "--segments"])
-        .arg(&f)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = exit2(
+        hirad()
+            .args(["-q", "raybench", "office", "--segments"])
+            .arg(&f),
+    );
     assert!(
         err.contains("rays.bin") && err.contains("triangles"),
         "{err}"
     );
     // Volume visibility casts no shadow rays: nothing to export.
-    let o = hirad()
-        .args([
-            "-q",
-            "solve",
-            "cornell",
-            "--bench",
-            "--visibility",
-            "volume",
-        ])
-        .arg("--export-rays")
-        .arg(d.path().join("v.bin"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = exit2(
+        hirad()
+            .args([
+                "-q",
+                "solve",
+                "cornell",
+                "--bench",
+                "--visibility",
+                "volume",
+            ])
+            .arg("--export-rays")
+            .arg(d.path().join("v.bin")),
+    );
     assert!(
         err.contains("--export-rays") && err.contains("volume"),
         "{err}"

@@ -57,18 +57,22 @@ impl<'a> Visibility<'a> {
         })
     }
 
-    /// Keep one in `every` of the segments cast by [`Visibility::transmittance`] with rays,
+    /// Keep one in `every` of the segments cast by [`Visibility::between`] with rays,
     /// chosen by a hash of their end points (so the same ones whatever the thread count).
     pub fn record(&mut self, every: u32) {
         self.record = Some((every.max(1) as u64, Default::default()));
     }
 
-    /// The segments kept ([`Visibility::record`]), sorted by their bits.
+    /// The segments kept ([`Visibility::record`]), sorted by their bits; taken out, so a second
+    /// call returns none.
     pub fn recorded(&self) -> Vec<Segment> {
         let Some((_, m)) = &self.record else {
             return Vec::new();
         };
-        let mut v = m.lock().map(|v| v.clone()).unwrap_or_default();
+        let mut v = m
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default();
         let key = |s: &Segment| [s.origin, s.dir].map(|p| p.to_array().map(f32::to_bits));
         v.sort_unstable_by_key(key);
         v
@@ -114,18 +118,15 @@ impl<'a> Visibility<'a> {
         4.0 * self.eps
     }
 
-    /// [`Visibility::transmittance`] of the segment between two sample points, all of it but
-    /// [`Visibility::eps`] at each end.
+    /// Fraction of light passing between two sample points, along all of the segment but
+    /// [`Visibility::eps`] at each end: for rays 0 or 1, where any surface but those of the
+    /// ends `a` and `b` (a surface, or every surface in a cluster's subtree) occludes; for
+    /// volumes the transmittance with the same ends excluded; 1 for `none`. A shadow cache for the several rays between the same
+    /// ends: `last` holds the triangle that blocked an earlier ray, which this ray tests
+    /// first, and takes the one that blocks it (`None` to start); the answer does not depend
+    /// on it.
     #[inline]
-    pub fn between(&self, x: Vec3, y: Vec3, a: Endpoint, b: Endpoint) -> f64 {
-        self.between_cached(x, y, a, b, &mut None)
-    }
-
-    /// [`Visibility::between`] for one of several rays between the same ends: `last` holds
-    /// the triangle that blocked an earlier ray, which this ray tests first, and takes the
-    /// one that blocks it. Same answer as without the cache.
-    #[inline]
-    pub fn between_cached(
+    pub fn between(
         &self,
         x: Vec3,
         y: Vec3,
@@ -134,7 +135,7 @@ impl<'a> Visibility<'a> {
         last: &mut Option<u32>,
     ) -> f64 {
         let t = (self.eps / (y - x).length().max(f32::MIN_POSITIVE)).min(0.25);
-        self.transmittance_cached(x, y, (t, 1.0 - t), (a, b), last)
+        self.transmittance(x, y, (t, 1.0 - t), (a, b), last)
     }
 
     /// The mode in use.
@@ -160,23 +161,10 @@ impl<'a> Visibility<'a> {
     /// Fraction of light passing from `x` to `y`: for rays, 0 or 1 from the segment
     /// `x + t (y − x)`, `t ∈ [t0, t1]`, where any surface but those of the ends `a` and `b`
     /// (a surface, or every surface in a cluster's subtree) occludes; for volumes, the
-    /// transmittance of the whole segment with the same ends excluded; 1 for `none`.
+    /// transmittance of the whole segment with the same ends excluded; 1 for `none`. `last`:
+    /// the shadow cache of [`Visibility::between`].
     #[inline]
-    pub fn transmittance(
-        &self,
-        x: Vec3,
-        y: Vec3,
-        t0: f32,
-        t1: f32,
-        a: Endpoint,
-        b: Endpoint,
-    ) -> f64 {
-        self.transmittance_cached(x, y, (t0, t1), (a, b), &mut None)
-    }
-
-    /// [`Visibility::transmittance`] with the shadow cache of [`Visibility::between_cached`].
-    #[inline]
-    fn transmittance_cached(
+    fn transmittance(
         &self,
         x: Vec3,
         y: Vec3,

@@ -483,16 +483,20 @@ impl<'a> RayCaster<'a> {
             )
     }
 
+    /// Corners of scene triangle `i` as the triangle test takes them.
+    #[inline]
+    fn tri_verts(&self, i: u32) -> watertight::TriVerts {
+        let [a, b, c] = self.scene.tri_vertices(i as usize);
+        [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+    }
+
     /// Brute-force occlusion: every triangle of the scene, same triangle test.
     pub fn occluded_brute(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         let Some(r) = RayPre::new(origin, dir) else {
             return false;
         };
-        (0..self.scene.num_triangles()).any(|i| {
-            let [a, b, c] = self.scene.tri_vertices(i);
-            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
-            intersect(&r, &v, tmin, tmax).is_some()
-        })
+        (0..self.scene.num_triangles())
+            .any(|i| intersect(&r, &self.tri_verts(i as u32), tmin, tmax).is_some())
     }
 
     /// Brute-force closest hit: every triangle of the scene, same triangle test. Ties in `t`
@@ -502,9 +506,7 @@ impl<'a> RayCaster<'a> {
         let mut best: Option<Hit> = None;
         let mut tmax = tmax;
         for i in 0..self.scene.num_triangles() {
-            let [a, b, c] = self.scene.tri_vertices(i);
-            let v = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
-            if let Some((t, u, v)) = intersect(&r, &v, tmin, tmax) {
+            if let Some((t, u, v)) = intersect(&r, &self.tri_verts(i as u32), tmin, tmax) {
                 if best.is_none_or(|h| t < h.t) {
                     tmax = t;
                     best = Some(Hit {
@@ -540,14 +542,9 @@ impl<'a> RayCaster<'a> {
             return None;
         }
         if let Some(h) = hint {
-            if (h as usize) < self.scene.num_triangles() && !skip(h) {
-                let v = self.scene.tri_vertices(h as usize);
-                let v = [
-                    v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z,
-                ];
-                if intersect(&r, &v, tmin, tmax).is_some() {
-                    return Some(h);
-                }
+            let valid = (h as usize) < self.scene.num_triangles() && !skip(h);
+            if valid && intersect(&r, &self.tri_verts(h), tmin, tmax).is_some() {
+                return Some(h);
             }
         }
         if STATS {

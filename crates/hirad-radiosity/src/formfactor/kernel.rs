@@ -382,7 +382,7 @@ impl KernelCtx<'_> {
             };
         }
         let mut n_open = 0usize;
-        // The triangle that blocked the last blocked ray (`Visibility::between_cached`).
+        // The triangle that blocked the last blocked ray (`Visibility::between`).
         let mut last = None;
         // (receiver point, source point) of the samples whose rays were open.
         let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
@@ -500,7 +500,7 @@ impl KernelCtx<'_> {
                 if self.covered(ey, ny, y) {
                     0.0
                 } else {
-                    self.vis.between_cached(x, y, ex, ey, &mut last)
+                    self.vis.between(x, y, ex, ey, &mut last)
                 }
             } else {
                 0.0

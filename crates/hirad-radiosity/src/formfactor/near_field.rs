@@ -146,7 +146,7 @@ impl KernelCtx<'_> {
             let vis = if self.covered(oe, on, y) {
                 0.0
             } else {
-                self.vis.between_cached(x, y, ge, oe, &mut last)
+                self.vis.between(x, y, ge, oe, &mut last)
             };
             vis_sum += vis;
             vmin = vmin.min(vis);
