@@ -9,8 +9,8 @@
 //! surfaces and leave out only those surfaces (directional) or the whole cluster (isotropic).
 //! Points of a triangle that a coplanar one covers ([`Covers`]) neither receive nor emit.
 
-use super::analytic::{point_to_disk, point_to_polygon};
-use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
+use super::analytic::{point_to_disk, point_to_polygon, point_to_polygon_many};
+use super::near_field::{closest_on_triangle, end_sphere, near_field_points, NEAR_FIELD_MAX};
 use super::sampling::{sample_triangle_above, sample_triangle_inset, stratified_2d};
 use crate::cluster_model::{self, ClusterOrient};
 use crate::config::{ClusterEmission, Reception};
@@ -18,7 +18,7 @@ use crate::element::{quad_path, Elements, Kind};
 use crate::link::Deposit;
 use crate::overlap::Covers;
 use crate::visibility::Visibility;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use hirad_accel::cluster::ClusterTree;
 use hirad_accel::ray::volume::Endpoint;
 use hirad_core::rng::SplitMix64;
@@ -283,14 +283,34 @@ impl KernelCtx<'_> {
         // source (a ceiling over a lamp 8 cm below it) sees it strongly there and weakly at its
         // centre and corners.
         let near = closest_on_triangle(&v, end_sphere(&sj).0.as_vec3());
-        let mut lo = Self::point_kernel(c, Some(n), &sj);
-        let mut hi = lo;
-        for p in v.into_iter().chain([near]) {
-            let f = Self::point_kernel(p + (c - p) * 0.05, Some(n), &sj);
-            lo = lo.min(f);
-            hi = hi.max(f);
+        let mut xs = [c; 5];
+        for (x, p) in xs[1..].iter_mut().zip(v.into_iter().chain([near])) {
+            *x = p + (c - p) * 0.05;
         }
-        (lo, hi)
+        let mut f = [0.0; 5];
+        Self::point_kernels(&xs, n, &sj, &mut f);
+        f[1..]
+            .iter()
+            .fold((f[0], f[0]), |(lo, hi), &f| (lo.min(f), hi.max(f)))
+    }
+
+    /// [`KernelCtx::point_kernel`] at each of the points `xs` of a surface receiver with
+    /// normal `n`, written to `out`: the same values, a surface source's computed together
+    /// ([`point_to_polygon_many`]).
+    pub(crate) fn point_kernels(xs: &[Vec3], n: Vec3, src: &End, out: &mut [f64]) {
+        match *src {
+            End::Surface { v, n: nj, .. } => {
+                let xd: SmallVec<[DVec3; NEAR_FIELD_MAX]> =
+                    xs.iter().map(|x| x.as_dvec3()).collect();
+                let poly = v.map(|p| p.as_dvec3());
+                point_to_polygon_many(&xd, n.as_dvec3(), &poly, nj.as_dvec3(), out);
+            }
+            End::Cluster { .. } => {
+                for (o, &x) in out.iter_mut().zip(xs) {
+                    *o = Self::point_kernel(x, Some(n), src);
+                }
+            }
+        }
     }
 
     /// Full kernel evaluation of the link (receiver `i`, source `j`) with `n_rays` stratified
@@ -381,6 +401,17 @@ impl KernelCtx<'_> {
                 ..Default::default()
             };
         }
+        // Between two surfaces, the receiver's sample points and their kernels, computed
+        // together ([`KernelCtx::point_kernels`]).
+        let mut surface_pts: SmallVec<[(Vec3, f64); INLINE]> = SmallVec::new();
+        if let (End::Surface { v, n: nr, .. }, End::Surface { .. }) = (ri, sj) {
+            let xs: SmallVec<[Vec3; INLINE]> = (0..n)
+                .map(|s| self.point_on(&v, su[s][0], su[s][1]))
+                .collect();
+            let mut f: SmallVec<[f64; INLINE]> = SmallVec::from_elem(0.0, n);
+            Self::point_kernels(&xs, nr, &sj, &mut f);
+            surface_pts.extend(xs.into_iter().zip(f));
+        }
         let mut n_open = 0usize;
         // The triangle that blocked the last blocked ray (`Visibility::between`).
         let mut last = None;
@@ -431,10 +462,13 @@ impl KernelCtx<'_> {
                 _ => sj.endpoint(),
             };
             let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
-                (End::Surface { v, n: nr, .. }, _) => {
-                    let x = self.point_on(&v, su[s][0], su[s][1]);
-                    (x, self.sample_kernel(x, nr, &src, member), Some(nr))
-                }
+                (End::Surface { v, n: nr, .. }, _) => match surface_pts.get(s) {
+                    Some(&(x, f)) => (x, f, Some(nr)),
+                    None => {
+                        let x = self.point_on(&v, su[s][0], su[s][1]);
+                        (x, self.sample_kernel(x, nr, &src, member), Some(nr))
+                    }
+                },
                 (End::Cluster { .. }, Some(cdf)) => {
                     let total = cdf[cdf.len() - 1].1;
                     let target = su[s][0] as f64 * total;
@@ -528,8 +562,9 @@ impl KernelCtx<'_> {
         if bounds {
             // Corner points of a surface receiver widen the kernel range (no rays).
             if let End::Surface { v, n: nr, c, .. } = ri {
-                for p in v {
-                    let f = Self::point_kernel(p + (c - p) * 0.02, Some(nr), &sj);
+                let mut f = [0.0; 3];
+                Self::point_kernels(&v.map(|p| p + (c - p) * 0.02), nr, &sj, &mut f);
+                for f in f {
                     fmin = fmin.min(f);
                     fmax = fmax.max(f);
                 }

@@ -107,16 +107,24 @@ impl KernelCtx<'_> {
             area: 0.0,
             tri: 0,
         };
+        // Covered points are not part of their end (zero weight in the cdf below).
+        let covered: SmallVec<[bool; NEAR_FIELD_MAX]> =
+            xs.iter().map(|&x| self.covered(ge, gn, x)).collect();
+        let open: SmallVec<[Vec3; NEAR_FIELD_MAX]> = (xs.iter().zip(&covered))
+            .filter(|(_, &c)| !c)
+            .map(|(&x, _)| x)
+            .collect();
+        let n_open = open.len();
+        let mut f_open: SmallVec<[f64; NEAR_FIELD_MAX]> = SmallVec::from_elem(0.0, n_open);
+        Self::point_kernels(&open, gn, &other, &mut f_open);
+        let mut f_open = f_open.into_iter();
         let mut cdf: SmallVec<[f64; NEAR_FIELD_MAX]> = SmallVec::new();
         let (mut acc, mut fmin, mut fmax) = (0.0f64, f64::INFINITY, 0.0f64);
-        let mut n_open = 0usize;
-        for &x in &xs {
-            // Covered points are not part of their end (zero weight in the cdf below).
-            let f = if self.covered(ge, gn, x) {
+        for &c in &covered {
+            let f = if c {
                 0.0
             } else {
-                n_open += 1;
-                Self::point_kernel(x, Some(gn), &other)
+                f_open.next().expect("one kernel per open point")
             };
             fmin = fmin.min(f);
             fmax = fmax.max(f);
@@ -217,7 +225,7 @@ pub(super) fn closest_on_triangle(v: &[Vec3; 3], p: Vec3) -> Vec3 {
 }
 
 /// Most points of a near-field kernel ([`KernelCtx::near_field`]); a fine one may have 4×.
-const NEAR_FIELD_MAX: usize = 64;
+pub(super) const NEAR_FIELD_MAX: usize = 64;
 
 /// Points for the unoccluded kernel of surface receiver `r` from surface source `s`: `n` when
 /// the gap between them is at least the receiver's diameter, else enough for a spacing of

@@ -85,6 +85,33 @@ fn angle_from_matches_atan2() {
     assert!(worst < 1e-15, "worst relative error {worst:e}");
 }
 
+/// An edge's contour term against `atan2` written out, over many decades, both signs of the
+/// dot product and the range boundaries of the reduction.
+#[test]
+fn edge_term_matches_atan2() {
+    use super::analytic::edge_term;
+    let mut rng = SplitMix64::new(8);
+    let mut worst = 0.0f64;
+    for i in 0..200_000 {
+        let s = 10f64.powf(rng.next_f64() * 12.0 - 6.0);
+        let cl = (rng.next_f64() + 1e-9) * s;
+        let dot = (rng.next_f64() * 2.0 - 1.0) * 10f64.powf(rng.next_f64() * 12.0 - 6.0);
+        let dot = match i % 1000 {
+            0 => 0.0,
+            1 => cl,
+            2 => -cl,
+            3 => cl / 2.414_213_562_373_095,
+            4 => -cl / 0.66,
+            _ => dot,
+        };
+        let cn = (rng.next_f64() * 2.0 - 1.0) * cl;
+        let want = cl.atan2(dot) * cn / cl;
+        let got = edge_term(cl, dot, cn);
+        worst = worst.max((got - want).abs() / want.abs().max(1e-300));
+    }
+    assert!(worst < 4e-15, "worst relative error {worst:e}");
+}
+
 #[test]
 fn closest_on_triangle_matches_a_dense_search() {
     let v = [
@@ -195,7 +222,7 @@ fn inset_points_keep_their_margin_from_the_edges() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn contour_avx_gives_the_bits_of_the_scalar_sum() {
-    use super::analytic::{contour_avx, contour_scalar};
+    use super::analytic::{contour_scalar, contours_avx};
     if !std::arch::is_x86_feature_detected!("avx") {
         return;
     }
@@ -209,17 +236,69 @@ fn contour_avx_gives_the_bits_of_the_scalar_sum() {
         ) * s
             * 2f64.powi(e)
     };
-    for i in 0..200_000 {
-        let m = 3 + i % 2;
-        let pts: Vec<DVec3> = (0..m).map(|_| v(1.0)).collect();
-        let x = if i % 7 == 0 { pts[0] } else { v(4.0) };
+    for i in 0..50_000 {
+        // Five contours of three or four corners (padded to four), done together.
         let n = v(1.0).normalize_or(DVec3::Z);
+        let quads: Vec<(usize, DVec3, [DVec3; 4])> = (0..5)
+            .map(|k| {
+                let m = 3 + (i + k) % 2;
+                let mut q = [DVec3::ZERO; 4];
+                for c in q.iter_mut().take(m) {
+                    *c = v(1.0);
+                }
+                q[3] = q[m - 1];
+                let x = if (i + k) % 7 == 0 { q[0] } else { v(4.0) };
+                (k, x, q)
+            })
+            .collect();
+        let mut fast = [f64::NAN; 5];
         // SAFETY: AVX is present (checked above).
-        let fast = unsafe { contour_avx(x, n, &pts) };
-        assert_eq!(
-            fast.to_bits(),
-            contour_scalar(x, n, &pts).to_bits(),
-            "{pts:?} {x} {n}"
-        );
+        unsafe { contours_avx(&quads, n, &mut fast) };
+        for &(k, x, q) in &quads {
+            let m = if q[3] == q[2] { 3 } else { 4 };
+            assert_eq!(
+                fast[k].to_bits(),
+                contour_scalar(x, n, &q[..m]).to_bits(),
+                "{q:?} {x} {n}"
+            );
+        }
+    }
+}
+
+/// Many points at once give each point's value one edge at a time, bit for bit: points behind the polygon,
+/// above it, beside it (clipped), more than one batch.
+#[test]
+fn many_points_give_the_bits_of_one_point_at_a_time() {
+    use super::analytic::{contour_scalar, facing_part, point_to_polygon_many};
+    let mut rng = SplitMix64::new(5);
+    let mut r = || rng.next_f64() - 0.5;
+    for m in [3usize, 4, 6] {
+        for _ in 0..2_000 {
+            // A convex polygon in the plane z = 0 (regular, scaled, shifted), facing ±z.
+            let (s, dx, dy) = (1.0 + r(), r(), r());
+            let mut poly: Vec<DVec3> = (0..m)
+                .map(|k| {
+                    let a = std::f64::consts::TAU * k as f64 / m as f64;
+                    DVec3::new(dx + s * a.cos(), dy + s * a.sin(), 0.0)
+                })
+                .collect();
+            let up = r() > 0.0;
+            if !up {
+                poly.reverse();
+            }
+            let normal = if up { DVec3::Z } else { -DVec3::Z };
+            let n = DVec3::new(r(), r(), r()).normalize_or(DVec3::Z);
+            let xs: Vec<DVec3> = (0..19)
+                .map(|_| DVec3::new(4.0 * r(), 4.0 * r(), 2.0 * r()))
+                .collect();
+            let mut out = vec![f64::NAN; xs.len()];
+            point_to_polygon_many(&xs, n, &poly, normal, &mut out);
+            for (j, &x) in xs.iter().enumerate() {
+                let mut buf = [DVec3::ZERO; 16];
+                let one = facing_part(x, n, &poly, normal, &mut buf)
+                    .map_or(0.0, |pts| contour_scalar(x, n, pts));
+                assert_eq!(out[j].to_bits(), one.to_bits(), "point {j}, {m} corners");
+            }
+        }
     }
 }
