@@ -237,7 +237,16 @@ pub(super) fn near_field_points(r: &End, s: &End, n: usize, fine: bool) -> usize
     let (End::Surface { v: vr, .. }, End::Surface { v: vs, c: cs, .. }) = (*r, *s) else {
         return n;
     };
-    let diameter = 2.0 * end_sphere(r).1;
+    let (cr, rr) = end_sphere(r);
+    let diameter = 2.0 * rr;
+    // Bounding spheres a diameter apart (with a margin for rounding, far above f32's): the
+    // projections below would find the same, at more cost.
+    let (cs_d, rs) = end_sphere(s);
+    let d = cr.distance(cs_d);
+    let margin = 1e-3 * (d + rr + rs) + 1e-5 * cr.abs().max(cs_d.abs()).max_element();
+    if d - rr - rs - margin >= diameter {
+        return n;
+    }
     let mut p = closest_on_triangle(&vr, cs);
     let mut q = closest_on_triangle(&vs, p);
     for _ in 0..2 {
