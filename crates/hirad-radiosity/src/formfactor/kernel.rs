@@ -10,7 +10,7 @@
 //! Points of a triangle that a coplanar one covers ([`Covers`]) neither receive nor emit.
 
 use super::analytic::{point_to_disk, point_to_polygon, point_to_polygon_many};
-use super::near_field::{closest_on_triangle, end_sphere, near_field_points, NEAR_FIELD_MAX};
+use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
 use super::sampling::{sample_triangle_above, sample_triangle_inset, stratified_2d};
 use crate::cluster_model::{self, ClusterOrient};
 use crate::config::{ClusterEmission, Reception};
@@ -300,10 +300,15 @@ impl KernelCtx<'_> {
     pub(crate) fn point_kernels(xs: &[Vec3], n: Vec3, src: &End, out: &mut [f64]) {
         match *src {
             End::Surface { v, n: nj, .. } => {
-                let xd: SmallVec<[DVec3; NEAR_FIELD_MAX]> =
-                    xs.iter().map(|x| x.as_dvec3()).collect();
                 let poly = v.map(|p| p.as_dvec3());
-                point_to_polygon_many(&xd, n.as_dvec3(), &poly, nj.as_dvec3(), out);
+                let mut xd = [DVec3::ZERO; 8];
+                for (xs, out) in xs.chunks(xd.len()).zip(out.chunks_mut(xd.len())) {
+                    for (d, x) in xd.iter_mut().zip(xs) {
+                        *d = x.as_dvec3();
+                    }
+                    let xd = &xd[..xs.len()];
+                    point_to_polygon_many(xd, n.as_dvec3(), &poly, nj.as_dvec3(), out);
+                }
             }
             End::Cluster { .. } => {
                 for (o, &x) in out.iter_mut().zip(xs) {

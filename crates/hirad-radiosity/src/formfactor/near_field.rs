@@ -225,7 +225,7 @@ pub(super) fn closest_on_triangle(v: &[Vec3; 3], p: Vec3) -> Vec3 {
 }
 
 /// Most points of a near-field kernel ([`KernelCtx::near_field`]); a fine one may have 4×.
-pub(super) const NEAR_FIELD_MAX: usize = 64;
+const NEAR_FIELD_MAX: usize = 64;
 
 /// Points for the unoccluded kernel of surface receiver `r` from surface source `s`: `n` when
 /// the gap between them is at least the receiver's diameter, else enough for a spacing of
