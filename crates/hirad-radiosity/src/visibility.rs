@@ -17,6 +17,13 @@ use hirad_scene::Scene;
 use std::hash::Hasher;
 use std::sync::Mutex;
 
+thread_local! {
+    /// The triangle that blocked this thread's last blocked shadow ray: the first ray of a
+    /// link tests it first (links are evaluated in receiver order, so consecutive links
+    /// often share an occluder). Only the speed depends on it.
+    static LAST_BLOCKER: std::cell::Cell<Option<u32>> = const { std::cell::Cell::new(None) };
+}
+
 /// Visibility oracle of a solve.
 pub struct Visibility<'a> {
     mode: VisibilityMode,
@@ -123,8 +130,8 @@ impl<'a> Visibility<'a> {
     /// ends `a` and `b` (a surface, or every surface in a cluster's subtree) occludes; for
     /// volumes the transmittance with the same ends excluded; 1 for `none`. A shadow cache for the several rays between the same
     /// ends: `last` holds the triangle that blocked an earlier ray, which this ray tests
-    /// first, and takes the one that blocks it (`None` to start); the answer does not depend
-    /// on it.
+    /// first (without one, the triangle that blocked this thread's last blocked ray), and
+    /// takes the one that blocks it (`None` to start); the answer does not depend on it.
     #[inline]
     pub fn between(
         &self,
@@ -185,9 +192,11 @@ impl<'a> Visibility<'a> {
                 if let Some((every, m)) = &self.record {
                     self.keep(*every, m, x, y, (t0, t1));
                 }
-                match self.caster.occluder(x, y - x, (t0, t1), &skip, *last) {
+                let hint = last.or_else(|| LAST_BLOCKER.get());
+                match self.caster.occluder(x, y - x, (t0, t1), &skip, hint) {
                     Some(tri) => {
                         *last = Some(tri);
+                        LAST_BLOCKER.set(Some(tri));
                         0.0
                     }
                     None => 1.0,
