@@ -23,7 +23,8 @@ pub fn parallel_disk_exact(h: f64, a: f64, radius: f64) -> f64 {
     0.5 * (1.0 - (z - 2.0 * r2) / (z * z - 4.0 * a2 * r2).sqrt())
 }
 
-/// Cephes' rational approximation of `atan` on [−0.42, 0.42]: numerator and denominator.
+/// Cephes' rational approximation of `atan` on [−0.42, 0.42]: numerator and denominator
+/// ([`edge_term`]).
 const ATAN_P: [f64; 5] = [
     -8.750_608_600_031_904e-1,
     -1.615_753_718_733_365e1,
@@ -43,61 +44,13 @@ const T3P8: f64 = 2.414_213_562_373_095;
 /// π/2 − fl(π/2).
 const MOREBITS: f64 = 6.123_233_995_736_766e-17;
 
-/// `atan2(y, x)` for `y ≥ 0` (an angle in [0, π]), to about 2 ulp: the Cephes rational
-/// approximation of `atan` with its range reduction. The form factor kernel spends most of its
-/// time here, and libm's correctly rounded `atan2` is several times slower.
-#[inline]
-pub fn angle_from(y: f64, x: f64) -> f64 {
-    if y == 0.0 {
-        return if x < 0.0 { PI } else { 0.0 };
-    }
-    // The range reduction selects the numerator and denominator of `z` (`r / 1`, `−1 / r` or
-    // `(r − 1) / (r + 1)`) instead of branching: the ranges are equally likely here, and a
-    // mispredicted branch costs more than the selects. `x = 0` gives `r = ∞`, `z = −0`, π/2.
-    let r = y / x.abs();
-    let big = r > T3P8;
-    let mid = !big && r > 0.66;
-    let (y0, more) = if big {
-        (PI / 2.0, MOREBITS)
-    } else if mid {
-        (PI / 4.0, 0.5 * MOREBITS)
-    } else {
-        (0.0, 0.0)
-    };
-    let num = if big {
-        -1.0
-    } else if mid {
-        r - 1.0
-    } else {
-        r
-    };
-    let den = if big {
-        r
-    } else if mid {
-        r + 1.0
-    } else {
-        1.0
-    };
-    let z = num / den;
-    let zz = z * z;
-    let [p0, p1, p2, p3, p4] = ATAN_P;
-    let [q0, q1, q2, q3, q4] = ATAN_Q;
-    let p = (((p0 * zz + p1) * zz + p2) * zz + p3) * zz + p4;
-    let q = ((((zz + q0) * zz + q1) * zz + q2) * zz + q3) * zz + q4;
-    let t = y0 + (z * zz * p / q + more) + z;
-    if x < 0.0 {
-        PI - t
-    } else {
-        t
-    }
-}
-
 /// One edge's term `θ (c·n)/|c|` of Lambert's contour sum, from `cl = |c| > 0` (`c` the cross
 /// product of the edge's ends seen from the point), `dot` (their dot product, so that `θ` is
-/// `atan2(cl, dot)`) and `cn = c·n`. [`angle_from`]'s approximation, arranged for two
-/// divisions instead of four: the reduced argument `z` straight from `cl` and `|dot|`, and
+/// `atan2(cl, dot)`) and `cn = c·n`, to a few ulp. `θ` is Cephes' rational approximation of
+/// `atan` with its range reduction (libm's correctly rounded `atan2` is several times slower),
+/// arranged for two divisions: the reduced argument `z` straight from `cl` and `|dot|`, and
 /// `θ = A + B/q` (`A = y₀ + z + more`, `B = z³p`) brought over the final division by `cl`:
-/// `θ·cn/cl = (A·q + B)·cn / (q·cl)`. The divisions are what the kernel waits on.
+/// `θ·cn/cl = (A·q + B)·cn / (q·cl)`. The form factor kernel waits on these divisions.
 #[inline]
 pub(super) fn edge_term(cl: f64, dot: f64, cn: f64) -> f64 {
     let ad = dot.abs();

@@ -15,7 +15,9 @@ pub(crate) mod kernel;
 pub(crate) mod near_field;
 pub mod sampling;
 
-pub use self::analytic::{angle_from, parallel_disk_exact, point_to_disk, point_to_polygon};
+pub use self::analytic::{
+    parallel_disk_exact, point_to_disk, point_to_polygon, point_to_polygon_many,
+};
 pub use self::kernel::{KernelCtx, KernelEval};
 pub use self::sampling::{
     jittered_grid, sample_triangle, sample_triangle_above, sample_triangle_inset, stratified_2d,

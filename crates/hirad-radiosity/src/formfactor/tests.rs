@@ -1,4 +1,4 @@
-use super::analytic::{angle_from, parallel_disk_exact, point_to_disk, point_to_polygon};
+use super::analytic::{parallel_disk_exact, point_to_disk, point_to_polygon};
 use super::near_field::closest_on_triangle;
 use super::sampling::{sample_triangle, sample_triangle_inset, stratified_2d};
 use glam::{DVec3, Vec3};
@@ -59,30 +59,6 @@ fn polygon_form_factor_analytic_values() {
     // A tilted receiver sees part of the polygon clipped by its horizon.
     let f = point_to_polygon(DVec3::ZERO, DVec3::X, &big, -DVec3::Z);
     assert!((f - 0.5).abs() < 1e-3, "{f}");
-}
-
-#[test]
-fn angle_from_matches_atan2() {
-    let mut rng = SplitMix64::new(7);
-    let mut worst = 0.0f64;
-    for i in 0..200_000 {
-        // Magnitudes over many decades, both signs of x, and the exact axes.
-        let s = 10f64.powf(rng.next_f64() * 12.0 - 6.0);
-        let y = rng.next_f64() * s;
-        let x = (rng.next_f64() * 2.0 - 1.0) * 10f64.powf(rng.next_f64() * 12.0 - 6.0);
-        let (y, x) = match i % 1000 {
-            0 => (0.0, x),
-            1 => (y, 0.0),
-            2 => (y, y),
-            3 => (y, -y),
-            _ => (y, x),
-        };
-        let want = y.atan2(x);
-        let got = angle_from(y, x);
-        let err = (got - want).abs() / want.abs().max(f64::MIN_POSITIVE);
-        worst = worst.max(if want == 0.0 { got.abs() } else { err });
-    }
-    assert!(worst < 1e-15, "worst relative error {worst:e}");
 }
 
 /// An edge's contour term against `atan2` written out, over many decades, both signs of the
