@@ -128,10 +128,12 @@ impl<'a> Visibility<'a> {
     /// Fraction of light passing between two sample points, along all of the segment but
     /// [`Visibility::eps`] at each end: for rays 0 or 1, where any surface but those of the
     /// ends `a` and `b` (a surface, or every surface in a cluster's subtree) occludes; for
-    /// volumes the transmittance with the same ends excluded; 1 for `none`. A shadow cache for the several rays between the same
-    /// ends: `last` holds the triangle that blocked an earlier ray, which this ray tests
-    /// first (without one, the triangle that blocked this thread's last blocked ray), and
-    /// takes the one that blocks it (`None` to start); the answer does not depend on it.
+    /// volumes the transmittance with the same ends excluded; 1 for `none`.
+    ///
+    /// A shadow cache for the several rays between the same ends: `last` holds the triangle
+    /// that blocked an earlier ray, which this ray tests first (without one, the triangle
+    /// that blocked this thread's last blocked ray), and takes the one that blocks it
+    /// (`None` to start); the answer does not depend on it.
     #[inline]
     pub fn between(
         &self,

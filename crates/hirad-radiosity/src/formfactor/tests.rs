@@ -215,9 +215,10 @@ fn contour_avx_gives_the_bits_of_the_scalar_sum() {
     for i in 0..50_000 {
         // Five contours of three or four corners (padded to four), done together.
         let n = v(1.0).normalize_or(DVec3::Z);
+        let corners = |k: usize| 3 + (i + k) % 2;
         let quads: Vec<(usize, DVec3, [DVec3; 4])> = (0..5)
             .map(|k| {
-                let m = 3 + (i + k) % 2;
+                let m = corners(k);
                 let mut q = [DVec3::ZERO; 4];
                 for c in q.iter_mut().take(m) {
                     *c = v(1.0);
@@ -231,7 +232,7 @@ fn contour_avx_gives_the_bits_of_the_scalar_sum() {
         // SAFETY: AVX is present (checked above).
         unsafe { contours_avx(&quads, n, &mut fast) };
         for &(k, x, q) in &quads {
-            let m = if q[3] == q[2] { 3 } else { 4 };
+            let m = corners(k);
             assert_eq!(
                 fast[k].to_bits(),
                 contour_scalar(x, n, &q[..m]).to_bits(),
@@ -241,8 +242,8 @@ fn contour_avx_gives_the_bits_of_the_scalar_sum() {
     }
 }
 
-/// Many points at once give each point's value one edge at a time, bit for bit: points behind the polygon,
-/// above it, beside it (clipped), more than one batch.
+/// Many points at once give each point's value one edge at a time, bit for bit: points
+/// behind the polygon, above it, beside it (clipped), more than one batch.
 #[test]
 fn many_points_give_the_bits_of_one_point_at_a_time() {
     use super::analytic::{contour_scalar, facing_part, point_to_polygon_many};
