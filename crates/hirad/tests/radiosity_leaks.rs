@@ -38,6 +38,22 @@ fn box_inward(lo: Vec3, hi: Vec3, g0: u32) -> Vec<Quad> {
     radiosity_common::box_inward(lo, hi, GREY, g0)
 }
 
+/// The six inward-facing grey walls of the box `[lo, hi]`, each cut into `n × n` tiles (separate
+/// quads, as a soup has them), each wall in its own group from `g0`.
+fn tiled_box_inward(lo: Vec3, hi: Vec3, n: usize, g0: u32) -> Vec<Quad> {
+    let mut out = Vec::new();
+    for q in box_inward(lo, hi, g0) {
+        let [a, b, _, d] = q.p;
+        let (u, w) = ((b - a) / n as f32, (d - a) / n as f32);
+        for i in 0..n {
+            for j in 0..n {
+                out.push(rect(a + u * i as f32 + w * j as f32, u, w, q.mat, q.group));
+            }
+        }
+    }
+    out
+}
+
 /// Small randomly oriented grey triangles (as degenerate quads) inside `[lo, hi]`.
 fn clutter(lo: Vec3, hi: Vec3, n: usize, seed: u64, group: u32) -> Vec<Quad> {
     let mut rng = SplitMix64::new(seed);
@@ -88,6 +104,17 @@ fn scenes() -> Vec<LeakScene> {
     q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
     out.push(LeakScene {
         name: "lamp_in_box",
+        quads: q,
+        dark: vec![7, 8],
+    });
+    // 3b. The same box with tiled walls, the lamp off-centre near its floor: clusters hold
+    //     pieces of walls that meet at an edge, not a whole wall nor the whole box.
+    let mut q = tiled_box_inward(Vec3::splat(0.4), Vec3::splat(0.6), 2, 0);
+    q.push(rect(Vec3::new(0.43, 0.47, 0.41), x * 0.1, y * 0.1, LAMP, 6));
+    q.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
+    q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
+    out.push(LeakScene {
+        name: "lamp_in_tiled_box",
         quads: q,
         dark: vec![7, 8],
     });
@@ -198,23 +225,22 @@ fn mode_name(m: Mode) -> String {
     format!("{}/{}/{}", m.vis.name(), m.emission.name(), m.refine.name())
 }
 
-/// Leaks not fixed yet, about 2–4× the largest value measured (2026-12-04): with volumes,
-/// light leaves the small closed box of lamp_in_box, which long segments take as a volume
-/// (≤ 9.5e-6; the model's transmittance is never 0); objr's upper clusters, PROXI's over
-/// objects, straddle the wall of cell_across_wall, and when none of a link's few samples lands
-/// on a small surface behind it, the cluster hands that surface its share (≤ 2.7e-7 with
-/// rays). (A mixed link into a cluster now lands on the surfaces its samples saw, or splits
-/// an isotropic cluster end; sample points keep a margin from their triangle's edges, which
-/// shadow segments, also through volumes, no longer leave out: the other leaks measure 0.)
+/// The leak not fixed yet, about 4× the largest value measured (2026-12-04): objr's upper
+/// clusters straddle the wall of cell_across_wall, and when none of a link's few samples
+/// lands on a small surface behind it, a directional cluster hands that surface its share
+/// (≤ 2.7e-7, rays and volumes alike). (A mixed link into a cluster lands on the surfaces its
+/// samples saw, or splits an isotropic cluster end; sample points keep a margin from their
+/// triangle's edges, which shadow segments, also through volumes, no longer leave out;
+/// volumes are never flat clusters nor clusters around an end point: the other leaks
+/// measure 0.)
 fn known_leak(scene: &str, strategy: Strategy, m: Mode) -> f64 {
-    let mut bound: f64 = 1e-9;
-    if scene == "cell_across_wall" && strategy == Strategy::Objr {
-        bound = bound.max(1e-6);
+    if scene == "cell_across_wall"
+        && strategy == Strategy::Objr
+        && m.emission == ClusterEmission::Directional
+    {
+        return 1e-6;
     }
-    if scene == "lamp_in_box" && m.vis == VisibilityMode::Volume {
-        bound = bound.max(2e-5);
-    }
-    bound
+    1e-9
 }
 
 /// Largest radiosity of a dark group's surfaces relative to the lamp's exitance.

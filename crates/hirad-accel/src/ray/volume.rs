@@ -7,9 +7,10 @@
 
 use super::watertight::{intersect, RayPre};
 use super::{Segment, Stack};
-use crate::cluster::{ClusterTree, NONE};
+use crate::cluster::{objr, ClusterTree, Prims, NONE};
 use glam::Vec3;
 use hirad_core::geom::Aabb;
+use hirad_core::hash::U64Map;
 use hirad_scene::Scene;
 use rayon::prelude::*;
 
@@ -18,6 +19,10 @@ pub const PAD_REL: f32 = 1e-3;
 
 /// Default `vol_ratio` of `radiosity.md`.
 pub const DEFAULT_VOL_RATIO: f32 = 0.1;
+
+/// A cluster is a medium (may be a volume) only while the part of every object below it is
+/// smaller than this fraction of its size.
+pub const OBJECT_REL: f32 = 0.5;
 
 /// An end point of a transmittance query, whose own cluster must not shadow it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,7 +61,8 @@ pub struct VolumeQuery {
 /// Rules, in traversal order from the root (only clusters whose box the segment crosses are
 /// visited):
 /// - a cluster is used as a volume when its size (longest box edge) is below
-///   `vol_ratio × |q − p|` and it is not *excluded*; its subtree is then not visited;
+///   `vol_ratio × |q − p|`, it is a *medium*, it is not *excluded* and its box contains
+///   neither end point; its subtree is then not visited;
 /// - otherwise the traversal descends: the surfaces attached directly to that cluster are
 ///   tested exactly against the segment (watertight test, `t ∈ [1e-4, 1 − 1e-4]` as for the
 ///   ray-casting test); an exact hit makes `τ = 0`. With `vol_ratio = 0` the result is therefore
@@ -67,11 +73,19 @@ pub struct VolumeQuery {
 ///   ancestors of `c` are never used as volumes (their volume contains `c`; they are descended
 ///   into, so their other contents still count). For [`Endpoint::Surface`]`(s)` the surface `s`
 ///   is never tested and the cluster holding `s` and its ancestors are never used as volumes.
+///   Nor is any cluster whose box contains an end point (within [`PAD_REL`] × its size and
+///   the point's rounding): the segment starts among its surfaces, not across a random
+///   medium (a lamp inside a closed box sees walls in every direction);
+/// - the model stands for many small objects scattered in a cluster (foliage), not for a
+///   surface through it: a cluster is a *medium* when the part of every object below it
+///   (welded connected surfaces of one material, as `objr` finds them) is smaller than
+///   [`OBJECT_REL`] × the size of what lies below it, and its surfaces do not all lie within
+///   [`PAD_REL`] × its size of one plane. Through a piece of a wall or of a closed box, where
+///   the model would let `exp(−κℓ)` through, the surfaces are tested exactly.
 ///
-/// Zero volume: boxes that are flat (e.g. a cluster of coplanar wall polygons) get every edge
-/// padded to at least [`PAD_REL`] × their size, symmetrically, both for `V_c` and for `ℓ_c`.
-/// For a segment crossing such a slab `κ·ℓ` then tends to `ΣA / (4·A_box·|cos θ|)` whatever the
-/// padding, the model's value for a flat layer. Boxes of size 0 (a point) have `κ = 0`.
+/// Zero volume: boxes with an edge shorter than [`PAD_REL`] × their size get every edge padded
+/// to that, symmetrically, both for `V_c` and for `ℓ_c`. Boxes of size 0 (a point) have
+/// `κ = 0`.
 ///
 /// Note on the model: `ΣA/4` is the mean projected area of one-sided surfaces weighted by
 /// `max(0, cos)`. The mean projected area of a randomly oriented polygon seen from both sides
@@ -90,6 +104,8 @@ pub struct VolumeCaster<'a> {
     boxes: Vec<[f32; 6]>,
     /// Size (longest edge of the real box) per node.
     size: Vec<f32>,
+    /// Per node: a medium (see the rules), which may be used as a volume.
+    medium: Vec<bool>,
     /// Depth-first numbering: node `x` is an ancestor-or-self of `y` iff
     /// `pre[x] <= pre[y] < end[x]`.
     pre: Vec<u32>,
@@ -111,11 +127,146 @@ fn box6(b: &Aabb) -> [f32; 6] {
     [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
 }
 
+/// True when `p` lies in the box `b` grown by `tol` plus the rounding of `p`'s coordinates
+/// (an end point computed on a surface of the box may fall just outside it).
+#[inline]
+fn contains(b: &[f32; 6], p: Vec3, tol: f32) -> bool {
+    let t = tol + 8.0 * f32::EPSILON * p.abs().max_element();
+    (0..3).all(|a| b[a] - t <= p[a] && p[a] <= b[a + 3] + t)
+}
+
+/// Per node: whether it is a medium (see [`VolumeCaster`]) as far as objects go: the size
+/// (longest box edge) of the largest part of one object below it, objects as
+/// [`objr::reconstruct`] finds them, is below [`OBJECT_REL`] × the size of the tight box of
+/// everything below it. Bottom up, each node's map object → box is its largest child's, with
+/// the others' entries and its own surfaces merged in (so every surface moves O(log n)
+/// times; the order of a merge does not change its result); only entries that grow can
+/// exceed the largest child's maximum.
+fn small_objects(scene: &Scene, tree: &ClusterTree) -> Vec<bool> {
+    let n = tree.nodes.len();
+    let object = objr::reconstruct(&Prims::from_scene(scene)).object;
+    let mut maps: Vec<U64Map<Aabb>> = (0..n).map(|_| U64Map::default()).collect();
+    let mut piece = vec![0f32; n];
+    let mut tight = vec![Aabb::EMPTY; n];
+    let mut out = vec![false; n];
+    for id in (0..n).rev() {
+        let kids: Vec<usize> = tree.nodes[id]
+            .children()
+            .map(|c| c as usize)
+            .filter(|&c| c < n && c > id)
+            .collect();
+        let big = kids.iter().copied().max_by_key(|&c| maps[c].len());
+        let mut map = big
+            .map(|c| std::mem::take(&mut maps[c]))
+            .unwrap_or_default();
+        let mut largest = big.map_or(0.0, |c| piece[c]);
+        let mut all = Aabb::EMPTY;
+        for &c in &kids {
+            all.grow_box(&tight[c]);
+        }
+        let mut add = |map: &mut U64Map<Aabb>, obj: u32, b: &Aabb| {
+            let e = map.entry(obj as u64).or_insert(Aabb::EMPTY);
+            e.grow_box(b);
+            largest = largest.max(e.size());
+        };
+        for &c in &kids {
+            if Some(c) != big {
+                for (k, b) in std::mem::take(&mut maps[c]) {
+                    add(&mut map, k as u32, &b);
+                }
+            }
+        }
+        for &s in tree.node_surfaces(id as u32) {
+            if let Some(&o) = object.get(s as usize) {
+                let b = scene.tri_bbox(s as usize);
+                all.grow_box(&b);
+                add(&mut map, o, &b);
+            }
+        }
+        piece[id] = largest;
+        tight[id] = all;
+        out[id] = !all.is_empty() && largest < OBJECT_REL * all.size();
+        maps[id] = map;
+    }
+    out
+}
+
+/// Per node: whether every surface below it lies within [`PAD_REL`] × its size (at least the
+/// rounding of its coordinates) of one plane. Bottom up: a node's plane is that of its
+/// largest own surface, else of its first child; a flat child of plane `(n_c, d_c)` and
+/// deviation `δ_c` deviates from the plane `(n, d)` by at most
+/// `δ_c + max over its box corners x of |(n − n_c)·x − (d − d_c)|` (`grown`: per node, a box
+/// containing everything below it).
+fn flat_nodes(scene: &Scene, tree: &ClusterTree, grown: &[Aabb]) -> Vec<bool> {
+    let n = tree.nodes.len();
+    // (unit normal, offset, deviation) of a flat node.
+    let mut plane: Vec<Option<(glam::DVec3, f64, f64)>> = vec![None; n];
+    for id in (0..n).rev() {
+        let node = &tree.nodes[id];
+        let b = node.bbox;
+        let scale = b.min.abs().max(b.max.abs()).max_element() as f64;
+        let tol = (PAD_REL as f64 * b.size() as f64).max(8.0 * f32::EPSILON as f64 * scale);
+        let own = tree.node_surfaces(id as u32);
+        let kids: Vec<usize> = node
+            .children()
+            .map(|c| c as usize)
+            .filter(|&c| c < n && c > id)
+            .collect();
+        if kids.iter().any(|&c| plane[c].is_none()) {
+            continue;
+        }
+        let reference = own
+            .iter()
+            .map(|&s| s as usize)
+            .filter(|&s| s < scene.num_triangles())
+            .max_by(|&x, &y| scene.areas[x].total_cmp(&scene.areas[y]))
+            .map(|s| {
+                let nrm = scene.normals[s].as_dvec3();
+                (nrm, nrm.dot(scene.tri_vertices(s)[0].as_dvec3()))
+            })
+            .or_else(|| kids.first().and_then(|&c| plane[c].map(|(m, d, _)| (m, d))));
+        let Some((nrm, d)) = reference else {
+            continue;
+        };
+        let mut dev = 0f64;
+        for &s in own {
+            if (s as usize) < scene.num_triangles() {
+                for v in scene.tri_vertices(s as usize) {
+                    dev = dev.max((nrm.dot(v.as_dvec3()) - d).abs());
+                }
+            }
+        }
+        for &c in &kids {
+            let Some((mut m, mut dc, dev_c)) = plane[c] else {
+                continue;
+            };
+            if m.dot(nrm) < 0.0 {
+                (m, dc) = (-m, -dc);
+            }
+            let cb = grown[c];
+            let (lo, hi) = (cb.min.as_dvec3(), cb.max.as_dvec3());
+            let dn = nrm - m;
+            // The linear function's extreme over the box is at the corner its gradient picks.
+            let far = glam::DVec3::select(dn.cmpge(glam::DVec3::ZERO), hi, lo);
+            let near = glam::DVec3::select(dn.cmpge(glam::DVec3::ZERO), lo, hi);
+            let spread = (dn.dot(far) - (d - dc))
+                .abs()
+                .max((dn.dot(near) - (d - dc)).abs());
+            dev = dev.max(dev_c + spread);
+        }
+        if dev <= tol {
+            plane[id] = Some((nrm, d, dev));
+        }
+    }
+    plane.iter().map(Option::is_some).collect()
+}
+
 impl<'a> VolumeCaster<'a> {
     /// Bytes of the per-node arrays.
     pub fn memory_bytes(&self) -> usize {
         (self.kappa.capacity() + self.size.capacity() + self.pre.capacity() + self.end.capacity())
             * 4
+            + self.medium.capacity()
             + (self.padded.capacity() + self.boxes.capacity()) * 24
     }
 
@@ -155,6 +306,8 @@ impl<'a> VolumeCaster<'a> {
             }
             grown[id] = b;
         }
+        let flat = flat_nodes(scene, tree, &grown);
+        let small = small_objects(scene, tree);
         let mut kappa = Vec::with_capacity(n);
         let mut padded = Vec::with_capacity(n);
         let mut boxes = Vec::with_capacity(n);
@@ -180,6 +333,7 @@ impl<'a> VolumeCaster<'a> {
             boxes.push(box6(&grown[id]));
             size.push(s);
         }
+        let medium = (0..n).map(|id| small[id] && !flat[id]).collect();
         // Depth-first numbering.
         let mut pre = vec![0u32; n];
         let mut end = vec![0u32; n];
@@ -209,6 +363,7 @@ impl<'a> VolumeCaster<'a> {
             padded,
             boxes,
             size,
+            medium,
             pre,
             end,
         }
@@ -327,8 +482,11 @@ impl<'a> VolumeCaster<'a> {
                 continue;
             }
             let ci = c as usize;
-            let holds_end = self.is_anc_or_self(c, ea.holder) || self.is_anc_or_self(c, eb.holder);
-            if !holds_end && self.size[ci] < limit {
+            let holds_end = self.is_anc_or_self(c, ea.holder)
+                || self.is_anc_or_self(c, eb.holder)
+                || contains(&self.boxes[ci], p, PAD_REL * self.size[ci])
+                || contains(&self.boxes[ci], q, PAD_REL * self.size[ci]);
+            if !holds_end && self.medium[ci] && self.size[ci] < limit {
                 depth += self.kappa[ci] as f64 * self.inside_length(p, dir, (tmin, tmax), ci, len);
                 continue;
             }
