@@ -5,7 +5,7 @@
 //! exactly (so `vol_ratio = 0` gives exact ray-cast visibility). [`VolumeCaster`] gives the
 //! rules in full: which clusters are used as volumes, the end points, flat boxes.
 
-use super::watertight::{intersect, RayPre};
+use super::watertight::{intersect, RayPre, TriVerts};
 use super::{Segment, Stack};
 use crate::cluster::{objr, ClusterTree, Prims, NONE};
 use glam::Vec3;
@@ -106,6 +106,9 @@ pub struct VolumeCaster<'a> {
     size: Vec<f32>,
     /// Per node: a medium (see the rules), which may be used as a volume.
     medium: Vec<bool>,
+    /// Vertices of every entry of the tree's surface array (`ClusterTree::surfaces`), for
+    /// the exact tests without going through the scene's index.
+    verts: Vec<TriVerts>,
     /// Depth-first numbering: node `x` is an ancestor-or-self of `y` iff
     /// `pre[x] <= pre[y] < end[x]`.
     pre: Vec<u32>,
@@ -127,11 +130,10 @@ fn box6(b: &Aabb) -> [f32; 6] {
     [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
 }
 
-/// True when `p` lies in the box `b` grown by `tol` plus the rounding of `p`'s coordinates
-/// (an end point computed on a surface of the box may fall just outside it).
+/// True when `p` lies in the box `b` grown by `t` (the caller adds the rounding of `p`'s
+/// coordinates: an end point computed on a surface of the box may fall just outside it).
 #[inline]
-fn contains(b: &[f32; 6], p: Vec3, tol: f32) -> bool {
-    let t = tol + 8.0 * f32::EPSILON * p.abs().max_element();
+fn contains(b: &[f32; 6], p: Vec3, t: f32) -> bool {
     (0..3).all(|a| b[a] - t <= p[a] && p[a] <= b[a + 3] + t)
 }
 
@@ -267,6 +269,7 @@ impl<'a> VolumeCaster<'a> {
         (self.kappa.capacity() + self.size.capacity() + self.pre.capacity() + self.end.capacity())
             * 4
             + self.medium.capacity()
+            + self.verts.capacity() * std::mem::size_of::<TriVerts>()
             + (self.padded.capacity() + self.boxes.capacity()) * 24
     }
 
@@ -364,6 +367,18 @@ impl<'a> VolumeCaster<'a> {
             boxes,
             size,
             medium,
+            verts: tree
+                .surfaces
+                .iter()
+                .map(|&s| {
+                    if (s as usize) < scene.num_triangles() {
+                        let [a, b, c] = scene.tri_vertices(s as usize);
+                        [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+                    } else {
+                        [0.0; 9]
+                    }
+                })
+                .collect(),
             pre,
             end,
         }
@@ -475,6 +490,11 @@ impl<'a> VolumeCaster<'a> {
         if r.slab(&self.boxes[0], tmin, tmax).is_none() {
             return Some(0.0);
         }
+        // Tolerances of the end points' containment tests, without the cluster's part.
+        let (tp, tq) = (
+            8.0 * f32::EPSILON * p.abs().max_element(),
+            8.0 * f32::EPSILON * q.abs().max_element(),
+        );
         let mut stack: Stack<u32, 128> = Stack::new();
         stack.push(0);
         while let Some(c) = stack.pop() {
@@ -482,25 +502,31 @@ impl<'a> VolumeCaster<'a> {
                 continue;
             }
             let ci = c as usize;
-            let holds_end = self.is_anc_or_self(c, ea.holder)
-                || self.is_anc_or_self(c, eb.holder)
-                || contains(&self.boxes[ci], p, PAD_REL * self.size[ci])
-                || contains(&self.boxes[ci], q, PAD_REL * self.size[ci]);
-            if !holds_end && self.medium[ci] && self.size[ci] < limit {
-                depth += self.kappa[ci] as f64 * self.inside_length(p, dir, (tmin, tmax), ci, len);
-                continue;
+            if self.medium[ci] && self.size[ci] < limit {
+                let b = &self.boxes[ci];
+                let t = PAD_REL * self.size[ci];
+                let holds_end = self.is_anc_or_self(c, ea.holder)
+                    || self.is_anc_or_self(c, eb.holder)
+                    || contains(b, p, t + tp)
+                    || contains(b, q, t + tq);
+                if !holds_end {
+                    depth +=
+                        self.kappa[ci] as f64 * self.inside_length(p, dir, (tmin, tmax), ci, len);
+                    continue;
+                }
             }
-            for &s in self.tree.node_surfaces(c) {
+            let node = &self.tree.nodes[ci];
+            let first = node.first_surface as usize;
+            let own = &self.tree.surfaces[first..first + node.num_surfaces as usize];
+            for (k, &s) in own.iter().enumerate() {
                 if s == ea.surface || s == eb.surface {
                     continue;
                 }
-                let [a, b, cc] = self.scene.tri_vertices(s as usize);
-                let v = [a.x, a.y, a.z, b.x, b.y, b.z, cc.x, cc.y, cc.z];
-                if intersect(&r, &v, tmin, tmax).is_some() {
+                if intersect(&r, &self.verts[first + k], tmin, tmax).is_some() {
                     return None;
                 }
             }
-            for ch in self.tree.nodes[ci].children() {
+            for ch in node.children() {
                 if r.slab(&self.boxes[ch as usize], tmin, tmax).is_some() {
                     stack.push(ch);
                 }
