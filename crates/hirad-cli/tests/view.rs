@@ -12,8 +12,13 @@ fn hirad() -> Command {
 
 /// `hirad solve cornell --preset fast` into `dir`; returns the solution glb.
 fn solve_cornell(dir: &Path) -> PathBuf {
+    solve_fast(dir, "cornell")
+}
+
+/// `hirad solve SCENE --preset fast` into `dir`; returns the solution glb.
+fn solve_fast(dir: &Path, scene: &str) -> PathBuf {
     let out = hirad()
-        .args(["-q", "solve", "cornell", "--preset", "fast", "--out"])
+        .args(["-q", "solve", scene, "--preset", "fast", "--out"])
         .arg(dir)
         .output()
         .unwrap();
@@ -197,19 +202,40 @@ fn view_draws_the_model_in_headless_chromium() {
 /// RMS ΔE*uv ≤ 3 (`hirad diff`, after sRGB decoding).
 #[test]
 fn view_at_the_scene_camera_matches_render() {
+    view_matches_render("cornell", &["--scene", "cornell"]);
+}
+
+/// The same for the Z-up office, whose solution glb turns it to +Y up for other viewers: the
+/// page, given nothing but the glb, leaves that turn out and takes Z as up (`"up":"z"`); with
+/// `--scene`, the scene's camera then sees what `render` draws.
+#[test]
+fn view_of_a_z_up_solution_at_the_scene_camera_matches_render() {
+    let d = tempfile::tempdir().unwrap();
+    let glb = solve_fast(d.path(), "office");
+    let r = hirad().args(["-q", "view"]).arg(&glb).output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let html = std::fs::read_to_string(d.path().join("viewer.html")).unwrap();
+    assert!(html.contains(r#""up":"z""#));
+    view_matches_render("office", &["--scene", "office"]);
+}
+
+/// Solve `scene` (`fast`), write its page with `flags`, and compare the page's picture at its
+/// starting view with `render --scene SCENE --ss 1` (RMS ΔE*uv ≤ 3, mean luminance within 2%).
+fn view_matches_render(scene: &str, flags: &[&str]) {
     let Some(chrome) = browser() else {
         return;
     };
     let d = tempfile::tempdir().unwrap();
-    let glb = solve_cornell(d.path());
+    let glb = solve_fast(d.path(), scene);
     let r = hirad()
-        .args(["-q", "view", "--scene", "cornell"])
+        .args(["-q", "view"])
+        .args(flags)
         .arg(&glb)
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    let shot = tmp.join("view_scene_camera.png");
+    let shot = tmp.join(format!("view_scene_camera_{scene}.png"));
     let page = d.path().join("viewer.html");
     screenshot(
         &chrome,
@@ -218,10 +244,10 @@ fn view_at_the_scene_camera_matches_render() {
         &shot,
         &d.path().join("profile"),
     );
-    let rendered = tmp.join("view_scene_camera_render.png");
+    let rendered = tmp.join(format!("view_scene_camera_render_{scene}.png"));
     let r = hirad()
         .args([
-            "-q", "render", "--scene", "cornell", "--ss", "1", "--size", "640x480",
+            "-q", "render", "--scene", scene, "--ss", "1", "--size", "640x480",
         ])
         .arg(&glb)
         .arg("--image")
@@ -238,7 +264,7 @@ fn view_at_the_scene_camera_matches_render() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     let rms = v["rms_delta_e"].as_f64().unwrap();
-    eprintln!("viewer vs render: RMS ΔE*uv {rms:.3}");
+    eprintln!("{scene}: viewer vs render: RMS ΔE*uv {rms:.3}");
     assert!(rms <= 3.0, "RMS ΔE*uv {rms} between the page and render");
     assert!(
         (v["mean_luminance_ratio"].as_f64().unwrap() - 1.0).abs() < 0.02,

@@ -13,7 +13,7 @@
 use super::solver::Solution;
 use glam::{DVec3, Vec3};
 use hirad_core::Result;
-use hirad_scene::export::{write_colored_mesh, ColoredMesh};
+use hirad_scene::export::{write_colored_mesh_up, ColoredMesh};
 use hirad_scene::Scene;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -175,7 +175,8 @@ pub struct OutputFiles {
     pub images: Vec<PathBuf>,
 }
 
-/// Write `solution.glb`, `solution.ply` and `stats.json` into `dir`, atomically.
+/// Write `solution.glb`, `solution.ply` and `stats.json` into `dir`, atomically (the `.glb` of
+/// a Z-up scene turned to glTF's +Y up by a root node, its mesh in the scene's coordinates).
 pub fn write_outputs(sol: &Solution, scene: &Scene, dir: &Path, flat: bool) -> Result<OutputFiles> {
     let mesh = radiosity_mesh(sol, scene, flat);
     let files = OutputFiles {
@@ -184,8 +185,8 @@ pub fn write_outputs(sol: &Solution, scene: &Scene, dir: &Path, flat: bool) -> R
         stats: dir.join("stats.json"),
         images: Vec::new(),
     };
-    write_colored_mesh(&files.glb, &mesh)?;
-    write_colored_mesh(&files.ply, &mesh)?;
+    write_colored_mesh_up(&files.glb, &mesh, scene.up)?;
+    write_colored_mesh_up(&files.ply, &mesh, scene.up)?;
     // The process peak so far includes the mesh files.
     let mut stats = sol.stats.clone();
     stats.memory.vm_hwm_bytes = crate::stats::vm_hwm_bytes().or(stats.memory.vm_hwm_bytes);

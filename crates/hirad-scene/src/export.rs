@@ -103,9 +103,17 @@ pub fn srgb_u8(x: f32) -> u8 {
 ///   = linear B (what [`read_colored_mesh`] returns); `list uchar uint vertex_indices`.
 /// - `.obj`: `v x y z r g b` with linear B, `f a b c`.
 pub fn write_colored_mesh(path: &Path, mesh: &ColoredMesh) -> Result<()> {
+    write_colored_mesh_up(path, mesh, super::UpAxis::Y)
+}
+
+/// [`write_colored_mesh`] of a mesh whose coordinates are `up`: a Z-up mesh's `.glb` puts its
+/// mesh (still in its own coordinates, which [`read_colored_mesh`] returns) under a root node
+/// named `z_up_to_y_up` that turns it to glTF's +Y up, so that any viewer shows it upright.
+/// `.ply` and `.obj` keep the coordinates as they are.
+pub fn write_colored_mesh_up(path: &Path, mesh: &ColoredMesh, up: super::UpAxis) -> Result<()> {
     check_mesh(path, mesh)?;
     match ext_of(path).as_str() {
-        "glb" => write_colored_glb(path, mesh),
+        "glb" => write_colored_glb(path, mesh, up),
         "ply" => write_colored_ply(path, mesh),
         "obj" => write_colored_obj(path, mesh),
         e => Err(Error::Config(format!(
@@ -261,7 +269,7 @@ impl GlbBuilder {
     }
 }
 
-fn write_colored_glb(path: &Path, mesh: &ColoredMesh) -> Result<()> {
+fn write_colored_glb(path: &Path, mesh: &ColoredMesh, up: super::UpAxis) -> Result<()> {
     let white = tonemap_white(&mesh.colors);
     let mut b = GlbBuilder::default();
     let pos = b.vec3(&mesh.positions, true);
@@ -292,7 +300,21 @@ fn write_colored_glb(path: &Path, mesh: &ColoredMesh) -> Result<()> {
         }],
     });
     doc["meshes"][0]["primitives"][0]["attributes"][RADIOSITY] = json!(radiosity);
+    if up == super::UpAxis::Z {
+        doc["nodes"] = json!([{"mesh": 0, "name": "radiosity"}, z_up_to_y_up(vec![0])]);
+        doc["scenes"] = json!([{"nodes": [1]}]);
+    }
     write_bytes_atomic(path, &b.finish(doc))
+}
+
+/// Name of the root node that turns a Z-up model to glTF's +Y up.
+pub const Z_UP_NODE: &str = "z_up_to_y_up";
+
+/// The root node turning Z-up `children` to glTF's +Y up: `(x, y, z) → (x, z, −y)`, a
+/// rotation of −90° about X.
+fn z_up_to_y_up(children: Vec<usize>) -> serde_json::Value {
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    json!({"name": Z_UP_NODE, "rotation": [-h, 0.0, 0.0, h], "children": children})
 }
 
 /// The glTF attribute holding linear radiosity B.
@@ -567,13 +589,7 @@ pub fn write_scene_glb(path: &Path, scene: &Scene) -> Result<()> {
         .collect();
     let n = nodes.len();
     let roots: Vec<usize> = if scene.up == super::UpAxis::Z {
-        // (x, y, z) Z-up → (x, z, -y) Y-up: rotation of -90° about X.
-        let h = std::f32::consts::FRAC_1_SQRT_2;
-        nodes.push(json!({
-            "name": "z_up_to_y_up",
-            "rotation": [-h, 0.0, 0.0, h],
-            "children": (0..n).collect::<Vec<_>>()
-        }));
+        nodes.push(z_up_to_y_up((0..n).collect()));
         vec![n]
     } else {
         (0..n).collect()
@@ -616,6 +632,31 @@ mod tests {
             write_colored_mesh(&p, &mesh()).unwrap();
             assert_eq!(read_colored_mesh(&p).unwrap(), mesh(), "{ext}");
         }
+    }
+
+    #[test]
+    fn z_up_glb_stands_upright_and_reads_back_in_its_own_coordinates() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("m.glb");
+        write_colored_mesh_up(&p, &mesh(), super::super::UpAxis::Z).unwrap();
+        assert_eq!(read_colored_mesh(&p).unwrap(), mesh());
+        // The scene's +Z, seen through the node's transform, is glTF's +Y (and +Y is −Z).
+        let (doc, _, _) = gltf::import(&p).unwrap();
+        let root = doc.default_scene().unwrap().nodes().next().unwrap();
+        assert_eq!(root.name(), Some(Z_UP_NODE));
+        let (_, r, _) = root.transform().decomposed();
+        let q = glam::Quat::from_array(r);
+        assert!((q * Vec3::Z - Vec3::Y).length() < 1e-6, "{:?}", q * Vec3::Z);
+        assert!((q * Vec3::Y + Vec3::Z).length() < 1e-6, "{:?}", q * Vec3::Y);
+        assert_eq!(
+            root.children().next().unwrap().mesh().map(|m| m.index()),
+            Some(0)
+        );
+        // Y-up: the mesh node is the root.
+        write_colored_mesh(&p, &mesh()).unwrap();
+        let (doc, _, _) = gltf::import(&p).unwrap();
+        let root = doc.default_scene().unwrap().nodes().next().unwrap();
+        assert_eq!(root.name(), Some("radiosity"));
     }
 
     #[test]

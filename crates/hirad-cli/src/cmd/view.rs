@@ -9,6 +9,7 @@
 
 use super::image_args::{parse_exposure, Exposure};
 use crate::Global;
+use hirad::scene::export::Z_UP_NODE;
 use hirad::scene::SceneOptions;
 use hirad::Error;
 use std::path::{Path, PathBuf};
@@ -45,7 +46,9 @@ pub struct Args {
     #[arg(long)]
     pub scene: Option<String>,
     /// Up axis of the model's coordinates: `y` (glTF's convention) or `z` (hirad solutions of
-    /// Z-up scenes keep the scene's coordinates) [default: the scene's with --scene, else y].
+    /// Z-up scenes keep the scene's coordinates under a root node turning them to +Y up, which
+    /// the page leaves out) [default: the scene's with --scene, else z for a solution with that
+    /// node, else y].
     /// Also switchable in the page.
     #[arg(long, value_parser = parse_up)]
     pub up: Option<String>,
@@ -61,7 +64,7 @@ fn parse_up(s: &str) -> Result<String, String> {
 
 pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
     let glb = std::fs::read(&a.solution).map_err(|e| Error::io(&a.solution, e))?;
-    check_glb(&a.solution, &glb)?;
+    let z_up = check_glb(&a.solution, &glb)?;
     let out = a.out.clone().unwrap_or_else(|| {
         a.solution
             .parent()
@@ -79,7 +82,7 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
             Exposure::Stops(s) => serde_json::json!(s),
             Exposure::Auto => serde_json::json!("auto"),
         },
-        "up": a.up.as_deref().unwrap_or("y"),
+        "up": a.up.as_deref().unwrap_or(if z_up { "z" } else { "y" }),
     });
     if let Some(spec) = &a.scene {
         let sc = super::load_scene(spec, &SceneOptions::default())?;
@@ -119,7 +122,9 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
 }
 
 /// The GLB container's header and chunk layout (what the page's parser relies on).
-fn check_glb(path: &Path, b: &[u8]) -> hirad::Result<()> {
+/// Check that `b` is a binary glTF with meshes; true when it holds hirad's node turning a Z-up
+/// model to +Y up.
+fn check_glb(path: &Path, b: &[u8]) -> hirad::Result<bool> {
     let bad = |msg: &str| Error::input(path, format!("not a binary glTF (.glb): {msg}"));
     let u32_at = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as usize;
     if b.len() < 20 || &b[0..4] != b"glTF" {
@@ -143,5 +148,9 @@ fn check_glb(path: &Path, b: &[u8]) -> hirad::Result<()> {
     {
         return Err(bad("no meshes"));
     }
-    Ok(())
+    let z_up = json
+        .get("nodes")
+        .and_then(|n| n.as_array())
+        .is_some_and(|n| n.iter().any(|x| x["name"] == Z_UP_NODE));
+    Ok(z_up)
 }
