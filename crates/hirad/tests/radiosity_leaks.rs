@@ -98,26 +98,18 @@ fn scenes() -> Vec<LeakScene> {
         dark: (0..6).collect(),
     });
     // 3. A lamp inside a closed box; a floor and a ceiling outside it.
-    let mut q = box_inward(Vec3::splat(0.4), Vec3::splat(0.6), 0);
-    q.push(rect(Vec3::new(0.45, 0.45, 0.45), x * 0.1, y * 0.1, LAMP, 6));
-    q.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
-    q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
-    out.push(LeakScene {
-        name: "lamp_in_box",
-        quads: q,
-        dark: vec![7, 8],
-    });
+    out.push(lamp_in_box(
+        "lamp_in_box",
+        box_inward(Vec3::splat(0.4), Vec3::splat(0.6), 0),
+        Vec3::new(0.45, 0.45, 0.45),
+    ));
     // 3b. The same box with tiled walls, the lamp off-centre near its floor: clusters hold
     //     pieces of walls that meet at an edge, not a whole wall nor the whole box.
-    let mut q = tiled_box_inward(Vec3::splat(0.4), Vec3::splat(0.6), 2, 0);
-    q.push(rect(Vec3::new(0.43, 0.47, 0.41), x * 0.1, y * 0.1, LAMP, 6));
-    q.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
-    q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
-    out.push(LeakScene {
-        name: "lamp_in_tiled_box",
-        quads: q,
-        dark: vec![7, 8],
-    });
+    out.push(lamp_in_box(
+        "lamp_in_tiled_box",
+        tiled_box_inward(Vec3::splat(0.4), Vec3::splat(0.6), 2, 0),
+        Vec3::new(0.43, 0.47, 0.41),
+    ));
     // 4. A thin double wall: the lamp lights the back wall; the front wall and the receiver
     //    beyond it stay dark.
     out.push(LeakScene {
@@ -176,6 +168,21 @@ fn scenes() -> Vec<LeakScene> {
         dark: vec![0],
     });
     out
+}
+
+/// The walls of a closed box (groups 0–5), a 0.1 × 0.1 lamp facing +z at `corner` inside it,
+/// and a floor and a ceiling outside it, which stay dark.
+fn lamp_in_box(name: &'static str, walls: Vec<Quad>, corner: Vec3) -> LeakScene {
+    let (x, y) = (Vec3::X, Vec3::Y);
+    let mut q = walls;
+    q.push(rect(corner, x * 0.1, y * 0.1, LAMP, 6));
+    q.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
+    q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
+    LeakScene {
+        name,
+        quads: q,
+        dark: vec![7, 8],
+    }
 }
 
 /// A closed box [0,2]×[0,1]×[0,1] of inward-facing walls, cut in two at x = 1 by a wall of
