@@ -55,6 +55,9 @@ pub struct KernelEval {
     /// (`W = Σ A_s w_s` times the cluster's irradiance) shared in proportion to what their
     /// samples received, over their area.
     pub open_members: Vec<(u32, f32)>,
+    /// Directional cluster receiver whose rays all saw the source: a child that no sample
+    /// landed on does not see it ([`KernelCtx::probe_children`]).
+    pub hidden_child: bool,
 }
 
 /// What a link records of its samples ([`Deposit`]): on a surface receiver (vertices `vr`),
@@ -424,6 +427,10 @@ impl KernelCtx<'_> {
         let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
         // Receiver points of the samples that count, and whether their rays were open.
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
+        // Directional cluster receiver: the surfaces its samples landed on, and the source
+        // end of the first open ray (for [`KernelCtx::probe_children`]).
+        let mut sampled: SmallVec<[u32; INLINE]> = SmallVec::new();
+        let mut probe_src = None;
         for s in 0..n {
             // Source sample point. A directional cluster source is the projected area of the
             // sampled surface (its own normal) at that point, so that the kernel converges to
@@ -549,8 +556,14 @@ impl KernelCtx<'_> {
                 blocked |= vis < 1.0;
                 if vis > 0.0 {
                     seen.push((x, y));
+                    if probe_src.is_none() {
+                        probe_src = Some((y, ey));
+                    }
                 }
                 recv.push((x, vis > 0.0));
+            }
+            if recv_member != NO_MEMBER {
+                sampled.push(recv_member);
             }
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
@@ -600,6 +613,18 @@ impl KernelCtx<'_> {
             _ => None,
         };
         let (deposit, draw) = deposit_at(vr.as_ref(), vs.as_ref(), &mut recv, &mut seen, &mut rng);
+        // Every ray open into a directional cluster: the hand-out would light all of its
+        // children, also those no sample landed on; one ray from each of those tests it.
+        let mut hidden_child = false;
+        if let (Some(cdf), Some(src), false) = (recv_cdf.as_deref(), probe_src, blocked) {
+            let (r, hidden) = self.probe_children(i, j, cdf, &sampled, src);
+            rays += r;
+            if hidden {
+                blocked = true;
+                vmin = 0.0;
+                hidden_child = true;
+            }
+        }
         let mixed = open && blocked;
         // The hand-out would deliver `k·B·W` to the cluster's surfaces in proportion to
         // `A_s w_s`; when the rays disagree, the surfaces whose samples saw the source share it
@@ -627,6 +652,7 @@ impl KernelCtx<'_> {
             deposit,
             draw,
             open_members,
+            hidden_child,
         }
     }
 
@@ -680,6 +706,60 @@ impl KernelCtx<'_> {
     /// A sample point of triangle `v` from two numbers in [0, 1), away from its edges by
     /// the visibility's [`Visibility::margin`].
     #[inline]
+    /// For a link from `j` into directional cluster `i` whose rays all saw the source: one
+    /// shadow ray from each child of `i` that holds no sampled surface (`sampled`) and has a
+    /// positive hand-out weight (its surfaces form one run of `cdf`, drawn from by weight) to
+    /// the source end `src` of an open ray. Returns the rays cast and whether one was blocked
+    /// (the hand-out would then light a child the source does not see).
+    fn probe_children(
+        &self,
+        i: u32,
+        j: u32,
+        cdf: &[(u32, f64, f64)],
+        sampled: &[u32],
+        (y, ey): (Vec3, Endpoint),
+    ) -> (u64, bool) {
+        let el = self.elems;
+        // The child of `i` that surface element `e` lies in.
+        let child = |mut e: u32| {
+            while el.elems[e as usize].parent != i {
+                e = el.elems[e as usize].parent;
+            }
+            e
+        };
+        let seen: SmallVec<[u32; INLINE]> = sampled.iter().map(|&e| child(e)).collect();
+        let mut rng = SplitMix64::for_item(
+            self.seed ^ 0x0C41_D9B0_BE5E_ED00,
+            ((i as u64) << 32) | j as u64,
+        );
+        let mut last = None;
+        let (mut rays, mut start) = (0, 0);
+        while start < cdf.len() {
+            let c = child(cdf[start].0);
+            let mut end = start + 1;
+            while end < cdf.len() && child(cdf[end].0) == c {
+                end += 1;
+            }
+            if !seen.contains(&c) {
+                let lo = if start > 0 { cdf[start - 1].1 } else { 0.0 };
+                let target = lo + rng.next_f64() * (cdf[end - 1].1 - lo);
+                let k = start + cdf[start..end].partition_point(|&(_, cum, _)| cum <= target);
+                let e = &el.elems[cdf[k.min(end - 1)].0 as usize];
+                let x = self.point_on(&e.verts, rng.next_f32(), rng.next_f32());
+                rays += 1;
+                if self
+                    .vis
+                    .between(x, y, Endpoint::Surface(e.tri), ey, &mut last)
+                    <= 0.0
+                {
+                    return (rays, true);
+                }
+            }
+            start = end;
+        }
+        (rays, false)
+    }
+
     pub(super) fn point_on(&self, v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
         sample_triangle_inset(v, u1, u2, self.vis.margin())
     }

@@ -186,6 +186,7 @@ impl KernelCtx<'_> {
             deposit,
             draw,
             open_members: Vec::new(),
+            hidden_child: false,
         }
     }
 }

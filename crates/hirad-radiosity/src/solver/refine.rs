@@ -15,7 +15,9 @@
 //! surfaces the source sees from those it does not, whatever the transfer's size: a
 //! directional cluster hands it to the surfaces whose samples saw the source instead, an
 //! isotropic one splits, as does an isotropic cluster source (its receiver would take the
-//! cluster's mean).
+//! cluster's mean). When all of a directional cluster receiver's rays saw the source, each of
+//! its children that no sample landed on is tested with one more ray first: a blocked one
+//! makes the rays disagree (a cluster straddling a wall would otherwise light its far side).
 
 use super::budget::Growth;
 use super::gather::Entry;
@@ -427,7 +429,7 @@ impl Solver<'_> {
             // which samples no surface (so the kernel names none), goes down to its children.
             if ev.mixed
                 && r.kind == Kind::Cluster
-                && ev.open_members.is_empty()
+                && (ev.open_members.is_empty() || ev.hidden_child)
                 && allow
                 && r.num_children > 0
             {
