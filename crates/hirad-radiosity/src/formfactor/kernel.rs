@@ -56,7 +56,7 @@ pub struct KernelEval {
     /// samples received, over their area.
     pub open_members: Vec<(u32, f32)>,
     /// Directional cluster receiver whose rays all saw the source: a child that no sample
-    /// landed on does not see it ([`KernelCtx::probe_children`]).
+    /// landed on does not see it (`KernelCtx::probe_children`).
     pub hidden_child: bool,
 }
 
@@ -428,7 +428,7 @@ impl KernelCtx<'_> {
         // Receiver points of the samples that count, and whether their rays were open.
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         // Directional cluster receiver: the surfaces its samples landed on, and the source
-        // end of the first open ray (for [`KernelCtx::probe_children`]).
+        // end of the first open ray (for `KernelCtx::probe_children`).
         let mut sampled: SmallVec<[u32; INLINE]> = SmallVec::new();
         let mut probe_src = None;
         for s in 0..n {
