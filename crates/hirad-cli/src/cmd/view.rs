@@ -83,6 +83,8 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
             Exposure::Auto => serde_json::json!("auto"),
         },
         "up": a.up.as_deref().unwrap_or(if z_up { "z" } else { "y" }),
+        // The root node of a Z-up solution, which the page leaves out.
+        "z_up_node": Z_UP_NODE,
     });
     if let Some(spec) = &a.scene {
         let sc = super::load_scene(spec, &SceneOptions::default())?;
