@@ -32,13 +32,18 @@ pub fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             back as u8,
             o.depth.map_or(String::new(), |d| format!("_d{d}"))
         ));
-        if let Some(v) = std::fs::read_to_string(&file).ok().and_then(|c| {
+        // With `--bins`, per axis of the normal, 6 × 10 bins over the scene's box of (path
+        // tracer sum, solver sum, points); the cache is then not read.
+        let binning = o.bins;
+        let mut bins = vec![[[(0.0f64, 0.0f64, 0usize); 10]; 6]; 3];
+        let cached = std::fs::read_to_string(&file).ok().and_then(|c| {
             let v: Vec<f64> = c
                 .split_whitespace()
                 .filter_map(|x| x.parse().ok())
                 .collect();
             (v.len() == 3).then_some(v)
-        }) {
+        });
+        if let (false, Some(v)) = (binning, cached) {
             return Estimate {
                 value: v[0],
                 stderr: v[1],
@@ -66,9 +71,56 @@ pub fn irradiance(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             let l = indirect_radiance(scene, caster, &pt, (p, n), &mut rng);
             let dh = direct_emitted(scene, caster, &ems, (p, n), &mut rng);
             let h = PI * l.element_sum() as f64 + dh;
+            if binning {
+                let hs = leaf_irradiance(&sol.elements, leaf_at(sol, root(sol, t as u32, back), p));
+                let ax = (0..3)
+                    .max_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs()))
+                    .unwrap();
+                let (u, v) = match ax {
+                    0 => (2, 1),
+                    1 => (0, 2),
+                    _ => (0, 1),
+                };
+                let bb = scene.bbox;
+                let fu =
+                    ((p[u] - bb.min[u]) / (bb.max[u] - bb.min[u]) * 10.0).clamp(0.0, 9.0) as usize;
+                let fv =
+                    ((p[v] - bb.min[v]) / (bb.max[v] - bb.min[v]) * 6.0).clamp(0.0, 5.0) as usize;
+                let c = &mut bins[ax][5 - fv][fu];
+                c.0 += h;
+                c.1 += hs;
+                c.2 += 1;
+            }
             s += h;
             s2 += h * h;
             sd += dh;
+        }
+        if binning {
+            for (ax, b) in bins.iter().enumerate() {
+                if b.iter().flatten().all(|c| c.2 == 0) {
+                    continue;
+                }
+                println!(
+                    "object {obj}, normal along axis {ax}: solver / path tracer irradiance and \
+                     points per bin (columns: the first other axis, low to high; rows: the \
+                     second, high to low; over the scene's box)"
+                );
+                for row in b {
+                    let line: Vec<String> = row
+                        .iter()
+                        .map(|c| {
+                            if c.2 == 0 {
+                                "      -    ".into()
+                            } else if c.0 <= 0.0 {
+                                format!(" dark {:5}", c.2)
+                            } else {
+                                format!("{:.3} {:5}", c.1 / c.0, c.2)
+                            }
+                        })
+                        .collect();
+                    println!("  {}", line.join(" "));
+                }
+            }
         }
         let n = open.max(1) as f64;
         let mean = s / n;

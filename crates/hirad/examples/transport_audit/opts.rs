@@ -25,6 +25,8 @@ pub struct Opts {
     pub object: Option<String>,
     /// `--source-mean` (`links`): Monte Carlo with the source element's mean radiosity.
     pub source_mean: bool,
+    /// `--bins`: `irradiance` also bins each object's points over its planes (10 × 6).
+    pub bins: bool,
     /// `--rays`: shadow rays per link.
     pub rays: Option<u32>,
     /// `--eps-rel`: overrides the preset's relative refinement threshold.
@@ -60,6 +62,7 @@ pub fn parse() -> Opts {
         samples: 20_000,
         object: None,
         source_mean: false,
+        bins: false,
         rays: None,
         eps_rel: None,
         min_area_rel: None,
@@ -82,6 +85,7 @@ pub fn parse() -> Opts {
             "--samples" => o.samples = val().parse().expect("--samples N"),
             "--object" => o.object = Some(val()),
             "--source-mean" => o.source_mean = true,
+            "--bins" => o.bins = true,
             "--rays" => o.rays = Some(val().parse().expect("--rays N")),
             "--eps-rel" => o.eps_rel = Some(val().parse().expect("--eps-rel X")),
             "--min-area-rel" => o.min_area_rel = Some(val().parse().expect("--min-area-rel X")),
