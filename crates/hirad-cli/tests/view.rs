@@ -202,7 +202,9 @@ fn view_draws_the_model_in_headless_chromium() {
 /// RMS ΔE*uv ≤ 3 (`hirad diff`, after sRGB decoding).
 #[test]
 fn view_at_the_scene_camera_matches_render() {
-    view_matches_render("cornell", &["--scene", "cornell"]);
+    let d = tempfile::tempdir().unwrap();
+    let glb = solve_fast(d.path(), "cornell");
+    view_matches_render(d.path(), &glb, "cornell");
 }
 
 /// The same for the Z-up office, whose solution glb turns it to +Y up for other viewers: the
@@ -216,40 +218,32 @@ fn view_of_a_z_up_solution_at_the_scene_camera_matches_render() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let html = std::fs::read_to_string(d.path().join("viewer.html")).unwrap();
     assert!(html.contains(r#""up":"z""#));
-    view_matches_render("office", &["--scene", "office"]);
+    view_matches_render(d.path(), &glb, "office");
 }
 
-/// Solve `scene` (`fast`), write its page with `flags`, and compare the page's picture at its
-/// starting view with `render --scene SCENE --ss 1` (RMS ΔE*uv ≤ 3, mean luminance within 2%).
-fn view_matches_render(scene: &str, flags: &[&str]) {
+/// Write the page of solution `glb` (in `dir`) with `--scene SCENE`, and compare its picture at
+/// its starting view with `render --scene SCENE --ss 1` (RMS ΔE*uv ≤ 3, mean luminance within
+/// 2%).
+fn view_matches_render(dir: &Path, glb: &Path, scene: &str) {
     let Some(chrome) = browser() else {
         return;
     };
-    let d = tempfile::tempdir().unwrap();
-    let glb = solve_fast(d.path(), scene);
     let r = hirad()
-        .args(["-q", "view"])
-        .args(flags)
-        .arg(&glb)
+        .args(["-q", "view", "--scene", scene])
+        .arg(glb)
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
     let shot = tmp.join(format!("view_scene_camera_{scene}.png"));
-    let page = d.path().join("viewer.html");
-    screenshot(
-        &chrome,
-        &page,
-        "#noui&noaa",
-        &shot,
-        &d.path().join("profile"),
-    );
+    let page = dir.join("viewer.html");
+    screenshot(&chrome, &page, "#noui&noaa", &shot, &dir.join("profile"));
     let rendered = tmp.join(format!("view_scene_camera_render_{scene}.png"));
     let r = hirad()
         .args([
             "-q", "render", "--scene", scene, "--ss", "1", "--size", "640x480",
         ])
-        .arg(&glb)
+        .arg(glb)
         .arg("--image")
         .arg(&rendered)
         .output()

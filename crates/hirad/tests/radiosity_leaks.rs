@@ -2,7 +2,8 @@
 //! one-sided surfaces facing away). Each runs for every clustering strategy × visibility
 //! {rays, volume} × cluster emission {directional, isotropic} × oracle {bf, error}; the
 //! radiosity of every surface that no light path reaches must be 0 (≤ [`LEAK_MAX`] of the
-//! lamp's exitance). `LEAK_TABLE=1` prints the worst leak of every scene and strategy with rays and volumes.
+//! lamp's exitance). `LEAK_TABLE=1` prints the worst leak of every scene and strategy with
+//! rays and volumes.
 
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -171,15 +172,14 @@ fn scenes() -> Vec<LeakScene> {
 
 /// The walls of a closed box (groups 0–5), a 0.1 × 0.1 lamp facing +z at `corner` inside it,
 /// and a floor and a ceiling outside it, which stay dark.
-fn lamp_in_box(name: &'static str, walls: Vec<Quad>, corner: Vec3) -> LeakScene {
+fn lamp_in_box(name: &'static str, mut quads: Vec<Quad>, corner: Vec3) -> LeakScene {
     let (x, y) = (Vec3::X, Vec3::Y);
-    let mut q = walls;
-    q.push(rect(corner, x * 0.1, y * 0.1, LAMP, 6));
-    q.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
-    q.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
+    quads.push(rect(corner, x * 0.1, y * 0.1, LAMP, 6));
+    quads.push(rect(Vec3::new(-1.0, -1.0, 0.0), x * 3.0, y * 3.0, GREY, 7));
+    quads.push(rect(Vec3::new(-1.0, -1.0, 1.5), y * 3.0, x * 3.0, GREY, 8));
     LeakScene {
         name,
-        quads: q,
+        quads,
         dark: vec![7, 8],
     }
 }

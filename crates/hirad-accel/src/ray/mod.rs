@@ -486,8 +486,7 @@ impl<'a> RayCaster<'a> {
     /// Corners of scene triangle `i` as the triangle test takes them.
     #[inline]
     fn tri_verts(&self, i: u32) -> watertight::TriVerts {
-        let [a, b, c] = self.scene.tri_vertices(i as usize);
-        [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+        watertight::tri_verts(self.scene, i as usize)
     }
 
     /// Brute-force occlusion: every triangle of the scene, same triangle test.

@@ -5,7 +5,7 @@
 //! exactly (so `vol_ratio = 0` gives exact ray-cast visibility). [`VolumeCaster`] gives the
 //! rules in full: which clusters are used as volumes, the end points, flat boxes.
 
-use super::watertight::{intersect, RayPre, TriVerts};
+use super::watertight::{intersect, tri_verts, RayPre, TriVerts};
 use super::{Segment, Stack};
 use crate::cluster::{objr, ClusterTree, Prims, NONE};
 use glam::Vec3;
@@ -137,6 +137,17 @@ fn contains(b: &[f32; 6], p: Vec3, t: f32) -> bool {
     (0..3).all(|a| b[a] - t <= p[a] && p[a] <= b[a + 3] + t)
 }
 
+/// The children of node `id` that come after it (the bottom-up passes below visit them
+/// first).
+fn children_after(tree: &ClusterTree, id: usize) -> Vec<usize> {
+    let n = tree.nodes.len();
+    tree.nodes[id]
+        .children()
+        .map(|c| c as usize)
+        .filter(|&c| c < n && c > id)
+        .collect()
+}
+
 /// Per node: whether it is a medium (see [`VolumeCaster`]) as far as objects go: the size
 /// (longest box edge) of the largest part of one object below it, objects as
 /// [`objr::reconstruct`] finds them, is below [`OBJECT_REL`] × the size of the tight box of
@@ -152,11 +163,7 @@ fn small_objects(scene: &Scene, tree: &ClusterTree) -> Vec<bool> {
     let mut tight = vec![Aabb::EMPTY; n];
     let mut out = vec![false; n];
     for id in (0..n).rev() {
-        let kids: Vec<usize> = tree.nodes[id]
-            .children()
-            .map(|c| c as usize)
-            .filter(|&c| c < n && c > id)
-            .collect();
+        let kids = children_after(tree, id);
         let big = kids.iter().copied().max_by_key(|&c| maps[c].len());
         let mut map = big
             .map(|c| std::mem::take(&mut maps[c]))
@@ -209,11 +216,7 @@ fn flat_nodes(scene: &Scene, tree: &ClusterTree, grown: &[Aabb]) -> Vec<bool> {
         let scale = b.min.abs().max(b.max.abs()).max_element() as f64;
         let tol = (PAD_REL as f64 * b.size() as f64).max(8.0 * f32::EPSILON as f64 * scale);
         let own = tree.node_surfaces(id as u32);
-        let kids: Vec<usize> = node
-            .children()
-            .map(|c| c as usize)
-            .filter(|&c| c < n && c > id)
-            .collect();
+        let kids = children_after(tree, id);
         if kids.iter().any(|&c| plane[c].is_none()) {
             continue;
         }
@@ -372,8 +375,7 @@ impl<'a> VolumeCaster<'a> {
                 .iter()
                 .map(|&s| {
                     if (s as usize) < scene.num_triangles() {
-                        let [a, b, c] = scene.tri_vertices(s as usize);
-                        [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+                        tri_verts(scene, s as usize)
                     } else {
                         [0.0; 9]
                     }
@@ -517,8 +519,7 @@ impl<'a> VolumeCaster<'a> {
             }
             let node = &self.tree.nodes[ci];
             let first = node.first_surface as usize;
-            let own = &self.tree.surfaces[first..first + node.num_surfaces as usize];
-            for (k, &s) in own.iter().enumerate() {
+            for (k, &s) in self.tree.node_surfaces(c).iter().enumerate() {
                 if s == ea.surface || s == eb.surface {
                     continue;
                 }

@@ -13,6 +13,13 @@ use glam::{Vec3, Vec4};
 /// Triangle vertices as stored by the traversal layout: `[x0, y0, z0, x1, y1, z1, x2, y2, z2]`.
 pub type TriVerts = [f32; 9];
 
+/// Corners of scene triangle `i` as the triangle test takes them.
+#[inline]
+pub fn tri_verts(scene: &hirad_scene::Scene, i: usize) -> TriVerts {
+    let [a, b, c] = scene.tri_vertices(i);
+    [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+}
+
 /// Per-ray data shared by the box and triangle tests.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPre {

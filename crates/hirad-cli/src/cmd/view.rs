@@ -123,9 +123,8 @@ pub fn run(a: Args, _g: &Global) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The GLB container's header and chunk layout (what the page's parser relies on).
-/// Check that `b` is a binary glTF with meshes; true when it holds hirad's node turning a Z-up
-/// model to +Y up.
+/// Check that `b` is a binary glTF with meshes, in the container layout the page's parser
+/// relies on; true when it holds hirad's node turning a Z-up model to +Y up.
 fn check_glb(path: &Path, b: &[u8]) -> hirad::Result<bool> {
     let bad = |msg: &str| Error::input(path, format!("not a binary glTF (.glb): {msg}"));
     let u32_at = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as usize;

@@ -706,6 +706,10 @@ impl KernelCtx<'_> {
     /// A sample point of triangle `v` from two numbers in [0, 1), away from its edges by
     /// the visibility's [`Visibility::margin`].
     #[inline]
+    pub(super) fn point_on(&self, v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
+        sample_triangle_inset(v, u1, u2, self.vis.margin())
+    }
+
     /// For a link from `j` into directional cluster `i` whose rays all saw the source: one
     /// shadow ray from each child of `i` that holds no sampled surface (`sampled`) and has a
     /// positive hand-out weight (its surfaces form one run of `cdf`, drawn from by weight) to
@@ -758,10 +762,6 @@ impl KernelCtx<'_> {
             start = end;
         }
         (rays, false)
-    }
-
-    pub(super) fn point_on(&self, v: &[Vec3; 3], u1: f32, u2: f32) -> Vec3 {
-        sample_triangle_inset(v, u1, u2, self.vis.margin())
     }
 }
 
