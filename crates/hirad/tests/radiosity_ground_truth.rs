@@ -1,7 +1,7 @@
 //! The solver against independent ground truth: a small room with an occluder (a table whose
 //! shadow falls on a tiled floor) compared tile by tile with the path tracer's irradiance, at
 //! the three presets, with the `error` oracle, with volume visibility and two-sided; sun and
-//! sky against their closed forms.
+//! sky against their closed forms; the wall behind a panel hung close in front of it.
 
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -28,6 +28,12 @@ const TILES: u32 = 4;
 /// ceiling (5), a table top 0.8 m square at 0.7 m (6: its top; one-sided it faces up, its
 /// underside is group 7 unless `two_sided`), the floor in `TILES`² tiles (groups 8…).
 fn room(two_sided_table: bool) -> Scene {
+    let (q, mats) = room_parts(two_sided_table);
+    quads_scene(&q, mats)
+}
+
+/// The quads and materials of [`room`].
+fn room_parts(two_sided_table: bool) -> (Vec<Quad>, Vec<Material>) {
     let (x, y, z) = (Vec3::X * 2.0, Vec3::Y * 2.0, Vec3::Z * 2.0);
     let o = Vec3::ZERO;
     let mut q: Vec<Quad> = vec![
@@ -76,7 +82,7 @@ fn room(two_sided_table: bool) -> Scene {
         },
         Material::diffuse("table", Vec3::splat(0.6)),
     ];
-    quads_scene(&q, mats)
+    (q, mats)
 }
 
 /// Path-traced mean irradiance (red channel) over the front (or back) faces of `group`:
@@ -280,4 +286,83 @@ fn per_material_sides_match_the_path_tracer() {
         "the table's underside is lit from the floor"
     );
     assert!(e < 0.05, "per-material sides: {e}");
+}
+
+/// Mean irradiance (red channel) over `n` points of the wall at x = 0 (group 3, facing +x)
+/// drawn uniformly where `keep(y, z)`: the solver's leaf at each point, and the path tracer's
+/// `π · L` over a cosine direction there.
+fn wall_irradiance(
+    sol: &Solution,
+    scene: &Scene,
+    pt: &PathTracer,
+    keep: impl Fn(f32, f32) -> bool,
+    n: usize,
+) -> (f64, f64) {
+    let el = &sol.elements;
+    let tris: Vec<u32> = (0..scene.num_triangles() as u32)
+        .filter(|&t| scene.tri_object[t as usize] == 3)
+        .collect();
+    let mut rng = SplitMix64::new(0x3A11);
+    let (mut solver, mut path, mut k) = (0.0, 0.0, 0);
+    while k < n {
+        let p = Vec3::new(0.0, 2.0 * rng.next_f32(), 2.0 * rng.next_f32());
+        if !keep(p.y, p.z) {
+            continue;
+        }
+        k += 1;
+        // The root triangle holding p, then its leaf there.
+        let t = tris
+            .iter()
+            .copied()
+            .find(|&t| {
+                let v = scene.tri_vertices(t as usize);
+                let c = |a: Vec3, b: Vec3| (b - a).cross(p - a).x >= -1e-6;
+                c(v[0], v[1]) && c(v[1], v[2]) && c(v[2], v[0])
+            })
+            .expect("a wall triangle holds the point");
+        let leaf = el.leaf_at(el.first_root + t, p);
+        let e = &el.elems[leaf as usize];
+        solver += (el.b[leaf as usize].x - e.emission.x as f64) / e.rho.x as f64;
+        let d = cosine_dir(Vec3::X, rng.next_f32(), rng.next_f32());
+        path += std::f64::consts::PI * pt.radiance(p + Vec3::X * 1e-4, d, &mut rng).x as f64;
+    }
+    (solver / n as f64, path / n as f64)
+}
+
+#[test]
+#[ignore = "issue 19, not met: the solver puts 8.7% of the open wall's irradiance behind the \
+            panel, the path tracer 0.5%"]
+fn the_wall_behind_a_hung_panel_gets_only_what_comes_through_the_gap() {
+    // A 1 m panel hung 3 cm in front of the 2 m wall at x = 0, like a mirror in its frame: its
+    // front faces the room, its back faces the wall. The wall is two big triangles whose links
+    // straddle the panel's outline; the panel's back lights the wall behind it, but it is dark
+    // (lit only through the gap), so its open rays must not draw the room's light there.
+    let (mut q, mats) = room_parts(false);
+    let (o, gap) = (Vec3::new(0.03, 0.5, 0.5), 0.03);
+    assert_eq!(o.x, gap);
+    q.push(rect(o, Vec3::Y, Vec3::Z, GREY, 24));
+    q.push(rect(o, Vec3::Z, Vec3::Y, GREY, 25));
+    let scene = quads_scene(&q, mats);
+    let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+    let sol = solve_with(&scene, &tree, SolverConfig::default());
+    let caster = RayCaster::new(&scene, &tree);
+    let pt = PathTracer::new(&scene, &caster, &ReferenceOptions::default());
+    // Behind the panel, 10 cm in from its edges; in the open, 10 cm out from them.
+    let inside = |a: f32| (0.6..1.4).contains(&a);
+    let outside = |a: f32| !(0.4..1.6).contains(&a);
+    let hidden = wall_irradiance(&sol, &scene, &pt, |y, z| inside(y) && inside(z), 40_000);
+    let open = wall_irradiance(&sol, &scene, &pt, |y, z| outside(y) || outside(z), 40_000);
+    eprintln!(
+        "wall irradiance, solver / path tracer: behind the panel {:.4} / {:.4}, in the open \
+         {:.4} / {:.4}",
+        hidden.0, hidden.1, open.0, open.1
+    );
+    assert!(
+        (hidden.0 - hidden.1).abs() < 0.05 * open.1,
+        "behind the panel: {hidden:?}, open: {open:?}"
+    );
+    assert!(
+        (open.0 / open.1 - 1.0).abs() < 0.05,
+        "in the open: {open:?}"
+    );
 }

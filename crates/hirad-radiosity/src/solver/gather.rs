@@ -3,10 +3,11 @@
 //! Cluster receivers keep one [`Entry`] per link, handed to their surfaces in push-pull.
 //! A subdivided surface receiver's light is shaped by where its links' shadow rays saw their
 //! sources, pooled over all its links ([`Deposit`] holds each link's sample points): a part
-//! gets the light in proportion to its open area times the share of open rays from it, so
-//! that the many weak links no oracle refines do not light what furniture hides, and the
-//! ratio (open rays over rays, not open rays over expected rays) keeps the noise of a few
-//! points per link out of the walls.
+//! gets the light in proportion to its open area times its light density, each link's light
+//! going to its open points and weighed against its share of all points ([`Cell`]). So the
+//! many weak links no oracle refines do not light what furniture hides, a dark link does not
+//! outvote a bright one, and the pooled ratio keeps the noise of a few points per link out of
+//! the walls.
 
 use super::push_pull::open_area;
 use super::Solver;
@@ -107,7 +108,7 @@ impl Solver<'_> {
                 .par_iter()
                 .map(|&(r, a, b)| {
                     let re = &el.elems[r as usize];
-                    let mut cells: Cells = [(0, 0); 64];
+                    let mut cells: Cells = [Cell::default(); 64];
                     let mut g = Gathered {
                         recv: r,
                         ..Default::default()
@@ -129,12 +130,7 @@ impl Solver<'_> {
                                 k: l.k,
                             });
                         } else {
-                            let d = l.deposit;
-                            for i in 0..d.points() {
-                                let c = &mut cells[d.path(i) as usize];
-                                c.0 += 1;
-                                c.1 += d.open(i) as u32;
-                            }
+                            add_points(&mut cells, l.deposit, contrib.element_sum());
                             g.h += contrib;
                             g.k_sum += l.k as f64;
                             if se.kind == Kind::Cluster {
@@ -177,10 +173,9 @@ impl Solver<'_> {
 }
 
 /// Spreads irradiance `h` gathered by surface receiver `id` over its parts in proportion to
-/// their open area times how often its links' rays from them saw their sources (`cells`:
-/// per cell 3 levels down, samples and open samples), each part's share shrunk towards its
-/// parent's where it has few samples; appends one deposit per part and returns what stays
-/// even (all of it when there are too few samples).
+/// their open area times their light density (`cells`, 3 levels down: see [`Cell`]), each
+/// part's density shrunk towards its parent's where it has few samples; appends one deposit
+/// per part and returns what stays even (all of it when there are too few samples).
 fn shape(
     el: &Elements,
     covers: &Covers,
@@ -189,23 +184,29 @@ fn shape(
     h: DVec3,
     out: &mut Vec<(Deposit, DVec3)>,
 ) -> DVec3 {
-    let (n, o) = cells
-        .iter()
-        .fold((0u64, 0u64), |a, c| (a.0 + c.0 as u64, a.1 + c.1 as u64));
-    let depth = shape_depth(n);
-    if depth == 0 || o == 0 || h == DVec3::ZERO {
+    let t = cells.iter().fold(Cell::default(), |a, c| a.plus(c));
+    let depth = shape_depth(t.points as u64);
+    if depth == 0 || t.open <= 0.0 || h == DVec3::ZERO {
         return h;
     }
+    // Light per point of the lit links: what a dark link's point weighs.
+    let dark_weight = t.all / (t.points - t.dark).max(1) as f64;
+    let cells = cells.map(|c| Cell {
+        all: c.all + c.dark as f64 * dark_weight,
+        ..c
+    });
     let mut sh = Shaper {
         el,
         covers,
-        cells,
+        cells: &cells,
         depth,
+        prior: SAMPLES_PER_PART * dark_weight,
         h,
         out,
         even: DVec3::ZERO,
     };
-    sh.part(id, 0, 0, 1.0, o as f64 / n as f64);
+    let all = t.all + t.dark as f64 * dark_weight;
+    sh.part(id, 0, 0, 1.0, t.open / all);
     sh.even
 }
 
@@ -222,9 +223,58 @@ pub(super) fn shape_depth(samples: u64) -> u32 {
     depth
 }
 
-/// Per cell 3 levels below a surface receiver ([`Deposit::LEVELS`]): its links' samples there
-/// and how many of them saw their source.
-type Cells = [(u32, u32); 64];
+/// One cell 3 levels below a surface receiver ([`Deposit::LEVELS`]): its links' sample points
+/// there, weighted by light (`K·B`, channel sum). A lit link adds its light per point to `all`
+/// at each point and its light per open point to `open` at each open point, so that over a
+/// part `open / all` estimates its light density over the receiver's mean, and a dark link
+/// (the back of a mirror lighting the wall behind it) weighs what it carries. A link that
+/// carries nothing (its rays all blocked, or a dark source) counts its points in `dark`; they
+/// weigh in `all` as much as an average lit point ([`shape`]): where its rays were blocked,
+/// light of the kind the receiver gets is blocked.
+#[derive(Clone, Copy, Debug, Default)]
+struct Cell {
+    /// Sample points, of lit and dark links.
+    points: u32,
+    /// Sample points of links that carry no light.
+    dark: u32,
+    all: f64,
+    open: f64,
+}
+
+impl Cell {
+    fn plus(self, o: &Cell) -> Cell {
+        Cell {
+            points: self.points + o.points,
+            dark: self.dark + o.dark,
+            all: self.all + o.all,
+            open: self.open + o.open,
+        }
+    }
+}
+
+/// Adds the sample points of a link that carries `light` (see [`Cell`]).
+fn add_points(cells: &mut Cells, d: Deposit, light: f64) {
+    let n = d.points();
+    if n == 0 {
+        return;
+    }
+    let per_point = light / n as f64;
+    let per_open = light / d.open_points().max(1) as f64;
+    for i in 0..n {
+        let c = &mut cells[d.path(i) as usize];
+        c.points += 1;
+        if light > 0.0 {
+            c.all += per_point;
+            if d.open(i) {
+                c.open += per_open;
+            }
+        } else {
+            c.dark += 1;
+        }
+    }
+}
+
+type Cells = [Cell; 64];
 
 /// The state of [`shape`]'s descent.
 struct Shaper<'a> {
@@ -232,6 +282,8 @@ struct Shaper<'a> {
     covers: &'a Covers,
     cells: &'a Cells,
     depth: u32,
+    /// The weight of [`SAMPLES_PER_PART`] average points.
+    prior: f64,
     h: DVec3,
     out: &'a mut Vec<(Deposit, DVec3)>,
     even: DVec3,
@@ -239,7 +291,7 @@ struct Shaper<'a> {
 
 impl Shaper<'_> {
     /// Part `node` at `level` below the receiver (its path `prefix`) gets `frac` of the
-    /// power; `p_par` is its open share.
+    /// power; `p_par` is its light density.
     fn part(&mut self, node: u32, level: u32, prefix: u32, frac: f64, p_par: f64) {
         let e = &self.el.elems[node as usize];
         let mut w = [0.0f64; 4];
@@ -248,13 +300,13 @@ impl Shaper<'_> {
             let mask = (1u32 << (2 * (level + 1))) - 1;
             for j in 0..4u32 {
                 let want = prefix | j << (2 * level);
-                let (nj, oj) = self
+                let c = self
                     .cells
                     .iter()
                     .enumerate()
                     .filter(|(c, _)| *c as u32 & mask == want)
-                    .fold((0.0, 0.0), |a, (_, c)| (a.0 + c.0 as f64, a.1 + c.1 as f64));
-                p[j as usize] = (oj + SAMPLES_PER_PART * p_par) / (nj + SAMPLES_PER_PART);
+                    .fold(Cell::default(), |a, (_, c)| a.plus(c));
+                p[j as usize] = (c.open + self.prior * p_par) / (c.all + self.prior);
                 w[j as usize] = open_area(self.el, self.covers, e.first_child + j) * p[j as usize];
             }
         }
@@ -278,5 +330,87 @@ impl Shaper<'_> {
                 p[j as usize],
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hirad_accel::cluster::{ClusterConfig, ClusterTree, Strategy};
+    use hirad_scene::{Material, RawScene, Scene, SceneOptions};
+
+    /// A link's points, one in each child of a once-subdivided receiver, open in children 0
+    /// and 2 and blocked in 1 and 3.
+    fn half_open() -> Deposit {
+        Deposit::with_mask(&[0, 1, 2, 3], 0b0101)
+    }
+
+    /// Share of the light that [`shape`] gives children 1 and 3 of a once-subdivided triangle
+    /// receiver from `links` (deposit, light, how many such links).
+    fn share_in_1_and_3(links: &[(Deposit, f64, usize)]) -> f64 {
+        let raw = RawScene {
+            name: "wall".into(),
+            positions: vec![Vec3::ZERO, Vec3::X * 2.0, Vec3::Y * 2.0],
+            triangles: vec![[0, 1, 2]],
+            tri_material: vec![0],
+            tri_object: vec![0],
+            objects: vec!["wall".into()],
+            materials: vec![Material::diffuse("grey", Vec3::splat(0.5))],
+            ..Default::default()
+        };
+        let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+        let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+        let mut el = Elements::build(&scene, &tree, false);
+        let covers = Covers::build(&scene, &tree, false);
+        let id = el.first_root;
+        el.subdivide(id);
+        let mut cells: Cells = [Cell::default(); 64];
+        for &(d, light, n) in links {
+            for _ in 0..n {
+                add_points(&mut cells, d, light);
+            }
+        }
+        let mut out = Vec::new();
+        let even = shape(&el, &covers, id, &cells, DVec3::ONE, &mut out);
+        assert_eq!(even, DVec3::ZERO, "the light is shaped");
+        let total: f64 = out.iter().map(|(_, h)| h.x).sum();
+        assert!(
+            (total - 1.0).abs() < 1e-12,
+            "shaping keeps the light: {total}"
+        );
+        out.iter()
+            .filter(|(d, _)| d.path(0) & 1 == 1)
+            .map(|(_, h)| h.x)
+            .sum()
+    }
+
+    #[test]
+    fn a_dark_link_does_not_draw_a_bright_links_light_where_its_rays_were_blocked() {
+        // Dark links (1% of the bright ones' light; the back of a mirror) see their source
+        // only from children 1 and 3, where the bright links' rays were blocked:
+        // light-weighted, those children get the dark links' light, 1%, plus the prior's
+        // pull towards the mean. Counting rays alone, they would get half.
+        let dark = Deposit::with_mask(&[0, 1, 2, 3], 0b1010);
+        let s = share_in_1_and_3(&[(half_open(), 1.0, 16), (dark, 0.01, 16)]);
+        assert!(s > 0.01 && s < 0.1, "dark links: {s}");
+        // Links as bright as the others light children 1 and 3 as much as those light 0
+        // and 2.
+        let s = share_in_1_and_3(&[(half_open(), 1.0, 16), (dark, 1.0, 16)]);
+        assert!((s - 0.5).abs() < 1e-9, "equally bright links: {s}");
+    }
+
+    #[test]
+    fn a_link_that_carries_nothing_counts_its_blocked_points() {
+        // With only the half-open links, children 1 and 3 get the prior's pull towards the
+        // mean; links that carry nothing, their rays blocked there, weigh as average lit
+        // points and leave them less.
+        let alone = share_in_1_and_3(&[(half_open(), 1.0, 16)]);
+        let blocked = Deposit::with_mask(&[1, 3, 1, 3], 0);
+        let with = share_in_1_and_3(&[(half_open(), 1.0, 16), (blocked, 0.0, 16)]);
+        assert!(alone > 0.0 && alone < 0.15, "alone: {alone}");
+        assert!(
+            with < 0.6 * alone,
+            "with blocked links: {with}, alone {alone}"
+        );
     }
 }

@@ -5,6 +5,7 @@ use crate::estimate::brute_irradiance;
 use crate::opts::Opts;
 use hirad::cluster::ClusterTree;
 use hirad::radiosity::element::Kind;
+use hirad::radiosity::link::Deposit;
 use hirad::radiosity::overlap::Covers;
 use hirad::radiosity::Solution;
 use hirad::ray::RayCaster;
@@ -112,6 +113,60 @@ pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             "level {lvl} (element {r}, area {:.4}): {} links, K·B {:.3}, brute over it {:.3}, \
              brute over the leaf {:.3}",
             el.elems[r as usize].area, pl.3, pl.0, pl.1, pl.2
+        );
+    }
+    // The pooled shaping's view of the leaf: per ancestor within `Deposit::LEVELS`, its links'
+    // sample points (and open ones) on the leaf's side of each level, against all of them.
+    for (lvl, &r) in chain.iter().enumerate().skip(1) {
+        if lvl > Deposit::LEVELS as usize {
+            break;
+        }
+        let mut want = 0u32;
+        for k in 0..lvl {
+            let c = chain[k];
+            let p = &el.elems[chain[k + 1] as usize];
+            want |= (c - p.first_child) << (2 * (lvl - 1 - k));
+        }
+        let mut at = vec![(0u64, 0u64); lvl + 1];
+        let mut by: std::collections::BTreeMap<&str, (u64, u64, u64, u64)> = Default::default();
+        for l in sol.links.links.iter().filter(|l| l.recv == r) {
+            let d = l.deposit;
+            let mut leaves = Vec::new();
+            el.leaves_of(l.src, &mut leaves);
+            let obj = scene.objects
+                [scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize]
+                .as_str();
+            let b = by.entry(obj).or_default();
+            for i in 0..d.points() {
+                b.0 += 1;
+                b.1 += d.open(i) as u64;
+                let mask = (1u32 << (2 * lvl)) - 1;
+                if d.path(i) & mask == want & mask {
+                    b.2 += 1;
+                    b.3 += d.open(i) as u64;
+                }
+                for (j, a) in at.iter_mut().enumerate() {
+                    let mask = (1u32 << (2 * j)) - 1;
+                    if d.path(i) & mask == want & mask {
+                        a.0 += 1;
+                        a.1 += d.open(i) as u64;
+                    }
+                }
+            }
+        }
+        for (obj, b) in &by {
+            println!(
+                "  from {obj}: open/points {}/{} over the element, {}/{} on the leaf",
+                b.1, b.0, b.3, b.2
+            );
+        }
+        let shares: Vec<String> = at
+            .iter()
+            .map(|a| format!("{}/{} ({:.2})", a.1, a.0, a.1 as f64 / a.0.max(1) as f64))
+            .collect();
+        println!(
+            "level {lvl}: open/points from the element down to the leaf: {}",
+            shares.join(" → ")
         );
     }
     println!(
