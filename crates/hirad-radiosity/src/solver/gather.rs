@@ -4,10 +4,10 @@
 //! A subdivided surface receiver's light is shaped by where its links' shadow rays saw their
 //! sources, pooled over all its links ([`Deposit`] holds each link's sample points): a part
 //! gets the light in proportion to its open area times its light density, each link's light
-//! going to its open points and weighed against its share of all points ([`Cell`]). So the
-//! many weak links no oracle refines do not light what furniture hides, a dark link does not
-//! outvote a bright one, and the pooled ratio keeps the noise of a few points per link out of
-//! the walls.
+//! (capped at the receiver's mean) going to its open points and weighed against its share of
+//! all points ([`Cell`]). So the many weak links no oracle refines do not light what
+//! furniture hides, a dark link does not outvote a bright one, and the pooled ratio keeps the
+//! noise of a few points per link out of the walls.
 
 use super::push_pull::open_area;
 use super::Solver;
@@ -106,7 +106,9 @@ impl Solver<'_> {
             let links = &set.links;
             let res: Vec<Gathered> = set.groups[start..(start + GATHER_CHUNK).min(n_groups)]
                 .par_iter()
-                .map(|&(r, a, b)| {
+                .map_init(Vec::new, |lights: &mut Vec<(Deposit, f64)>, &(r, a, b)| {
+                    // The deposit and light of each link into a surface receiver.
+                    lights.clear();
                     let re = &el.elems[r as usize];
                     let mut cells: Cells = [Cell::default(); 64];
                     let mut g = Gathered {
@@ -130,7 +132,7 @@ impl Solver<'_> {
                                 k: l.k,
                             });
                         } else {
-                            add_points(&mut cells, l.deposit, contrib.element_sum());
+                            lights.push((l.deposit, contrib.element_sum()));
                             g.h += contrib;
                             g.k_sum += l.k as f64;
                             if se.kind == Kind::Cluster {
@@ -138,6 +140,7 @@ impl Solver<'_> {
                             }
                         }
                     }
+                    add_links(&mut cells, lights);
                     if re.kind == Kind::Surface && re.num_children > 0 {
                         let h = std::mem::take(&mut g.h);
                         g.h = shape(el, covers, r, &cells, h, &mut g.deposits);
@@ -224,13 +227,13 @@ pub(super) fn shape_depth(samples: u64) -> u32 {
 }
 
 /// One cell 3 levels below a surface receiver ([`Deposit::LEVELS`]): its links' sample points
-/// there, weighted by light (`K·B`, channel sum). A lit link adds its light per point to `all`
-/// at each point and its light per open point to `open` at each open point, so that over a
-/// part `open / all` estimates its light density over the receiver's mean, and a dark link
-/// (the back of a mirror lighting the wall behind it) weighs what it carries. A link that
-/// carries nothing (its rays all blocked, or a dark source) counts its points in `dark`; they
-/// weigh in `all` as much as an average lit point ([`shape`]): where its rays were blocked,
-/// light of the kind the receiver gets is blocked.
+/// there, weighted by light (`K·B`, channel sum, capped: [`add_links`]). A lit link adds its
+/// light per point to `all` at each point and its light per open point to `open` at each open
+/// point, so that over a part `open / all` estimates its light density over the receiver's
+/// mean, and a dark link (the back of a mirror lighting the wall behind it) weighs what it
+/// carries. A link that carries nothing (its rays all blocked, or a dark source) counts its
+/// points in `dark`; they weigh in `all` as much as an average lit point ([`shape`]): where
+/// its rays were blocked, light of the kind the receiver gets is blocked.
 #[derive(Clone, Copy, Debug, Default)]
 struct Cell {
     /// Sample points, of lit and dark links.
@@ -249,6 +252,17 @@ impl Cell {
             all: self.all + o.all,
             open: self.open + o.open,
         }
+    }
+}
+
+/// Adds the sample points of a receiver's links (deposit, light), each link's light capped at
+/// the mean of its lit links: a few bright links' points would otherwise decide the shape
+/// alone (1 to 4 points each).
+fn add_links(cells: &mut Cells, links: &[(Deposit, f64)]) {
+    let n_lit = links.iter().filter(|x| x.1 > 0.0).count();
+    let mean = links.iter().map(|x| x.1).sum::<f64>() / n_lit.max(1) as f64;
+    for &(d, light) in links {
+        add_points(cells, d, light.min(mean));
     }
 }
 
@@ -365,11 +379,11 @@ mod tests {
         let id = el.first_root;
         el.subdivide(id);
         let mut cells: Cells = [Cell::default(); 64];
-        for &(d, light, n) in links {
-            for _ in 0..n {
-                add_points(&mut cells, d, light);
-            }
-        }
+        let all: Vec<(Deposit, f64)> = links
+            .iter()
+            .flat_map(|&(d, light, n)| std::iter::repeat_n((d, light), n))
+            .collect();
+        add_links(&mut cells, &all);
         let mut out = Vec::new();
         let even = shape(&el, &covers, id, &cells, DVec3::ONE, &mut out);
         assert_eq!(even, DVec3::ZERO, "the light is shaped");
@@ -388,8 +402,9 @@ mod tests {
     fn a_dark_link_does_not_draw_a_bright_links_light_where_its_rays_were_blocked() {
         // Dark links (1% of the bright ones' light; the back of a mirror) see their source
         // only from children 1 and 3, where the bright links' rays were blocked:
-        // light-weighted, those children get the dark links' light, 1%, plus the prior's
-        // pull towards the mean. Counting rays alone, they would get half.
+        // light-weighted, those children get the dark links' light, 1% (2% with the bright
+        // links capped at the mean), plus the prior's pull towards the mean. Counting rays
+        // alone, they would get half.
         let dark = Deposit::with_mask(&[0, 1, 2, 3], 0b1010);
         let s = share_in_1_and_3(&[(half_open(), 1.0, 16), (dark, 0.01, 16)]);
         assert!(s > 0.01 && s < 0.1, "dark links: {s}");
