@@ -107,7 +107,7 @@ impl Solver<'_> {
             let res: Vec<Gathered> = set.groups[start..(start + GATHER_CHUNK).min(n_groups)]
                 .par_iter()
                 .map_init(Vec::new, |lights: &mut Vec<(Deposit, f64)>, &(r, a, b)| {
-                    // The deposit and light of each link into a surface receiver.
+                    // The deposit and light of each link into a subdivided surface receiver.
                     lights.clear();
                     let re = &el.elems[r as usize];
                     let mut cells: Cells = [Cell::default(); 64];
@@ -132,7 +132,9 @@ impl Solver<'_> {
                                 k: l.k,
                             });
                         } else {
-                            lights.push((l.deposit, contrib.element_sum()));
+                            if re.num_children > 0 {
+                                lights.push((l.deposit, contrib.element_sum()));
+                            }
                             g.h += contrib;
                             g.k_sum += l.k as f64;
                             if se.kind == Kind::Cluster {
@@ -140,8 +142,8 @@ impl Solver<'_> {
                             }
                         }
                     }
-                    add_links(&mut cells, lights);
                     if re.kind == Kind::Surface && re.num_children > 0 {
+                        add_links(&mut cells, lights);
                         let h = std::mem::take(&mut g.h);
                         g.h = shape(el, covers, r, &cells, h, &mut g.deposits);
                     }

@@ -70,6 +70,13 @@ pub fn member_roots(sol: &Solution, id: u32, out: &mut Vec<u32>) {
     }
 }
 
+/// Object of element `id`'s first leaf (an element's object, a cluster's first one's).
+pub fn object_of(scene: &Scene, el: &Elements, id: u32) -> usize {
+    let mut leaves = Vec::new();
+    el.leaves_of(id, &mut leaves);
+    scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize
+}
+
 /// Index of the object named `name`; panics when there is none.
 pub fn object_index(scene: &Scene, name: &str) -> usize {
     scene

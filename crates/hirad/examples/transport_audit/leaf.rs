@@ -1,6 +1,6 @@
 //! Modes `leaf` (every link into one leaf and its surface ancestors) and `objlinks` (every
 //! link into one object's surfaces): delivered irradiance against brute force.
-use crate::elements::{leaf_irradiance, object_index};
+use crate::elements::{leaf_irradiance, object_index, object_of};
 use crate::estimate::brute_irradiance;
 use crate::opts::Opts;
 use hirad::cluster::ClusterTree;
@@ -44,8 +44,6 @@ pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
         for l in sol.links.links.iter().filter(|l| l.recv == r) {
             let se = &el.elems[l.src as usize];
             let got = sol.links.gather(l, el).element_sum();
-            let mut leaves = Vec::new();
-            el.leaves_of(l.src, &mut leaves);
             let mut rng = SplitMix64::for_item(0x001E_AF11, ((r as u64) << 32) | l.src as u64);
             let want = brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
             let want_leaf = if r == leaf {
@@ -60,8 +58,7 @@ pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             pl.1 += want;
             pl.2 += want_leaf;
             pl.3 += 1;
-            let src_obj = &scene.objects
-                [scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize];
+            let src_obj = &scene.objects[object_of(scene, el, l.src)];
             println!(
                 "{r:8} {:9.5} {:8} {:>7} {:9.4} {:9.5} {:9.3} {:9.3} {:7.3}  {src_obj} back {} {:.3?} n {:.2?}",
                 re.area,
@@ -127,38 +124,33 @@ pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             let p = &el.elems[chain[k + 1] as usize];
             want |= (c - p.first_child) << (2 * (lvl - 1 - k));
         }
+        // Whether a path follows the leaf's for its first `j` levels.
+        let towards_leaf = |path: u32, j: usize| {
+            let mask = (1u32 << (2 * j)) - 1;
+            path & mask == want & mask
+        };
         let mut at = vec![(0u64, 0u64); lvl + 1];
         let mut by: std::collections::BTreeMap<&str, (u64, u64, u64, u64)> = Default::default();
         for l in sol.links.links.iter().filter(|l| l.recv == r) {
             let d = l.deposit;
-            let mut leaves = Vec::new();
-            el.leaves_of(l.src, &mut leaves);
-            let obj = scene.objects
-                [scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize]
-                .as_str();
-            let b = by.entry(obj).or_default();
+            let b = by
+                .entry(scene.objects[object_of(scene, el, l.src)].as_str())
+                .or_default();
             for i in 0..d.points() {
+                let open = d.open(i) as u64;
                 b.0 += 1;
-                b.1 += d.open(i) as u64;
-                let mask = (1u32 << (2 * lvl)) - 1;
-                if d.path(i) & mask == want & mask {
+                b.1 += open;
+                if towards_leaf(d.path(i), lvl) {
                     b.2 += 1;
-                    b.3 += d.open(i) as u64;
+                    b.3 += open;
                 }
                 for (j, a) in at.iter_mut().enumerate() {
-                    let mask = (1u32 << (2 * j)) - 1;
-                    if d.path(i) & mask == want & mask {
+                    if towards_leaf(d.path(i), j) {
                         a.0 += 1;
-                        a.1 += d.open(i) as u64;
+                        a.1 += open;
                     }
                 }
             }
-        }
-        for (obj, b) in &by {
-            println!(
-                "  from {obj}: open/points {}/{} over the element, {}/{} on the leaf",
-                b.1, b.0, b.3, b.2
-            );
         }
         let shares: Vec<String> = at
             .iter()
@@ -168,6 +160,12 @@ pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaste
             "level {lvl}: open/points from the element down to the leaf: {}",
             shares.join(" → ")
         );
+        for (obj, b) in &by {
+            println!(
+                "  from {obj}: open/points {}/{} over the element, {}/{} on the leaf",
+                b.1, b.0, b.3, b.2
+            );
+        }
     }
     println!(
         "handed out by clusters, or moved by deposits (H − Σ K·B): {:.3}",
@@ -203,9 +201,7 @@ pub fn object_links(
             let a = re.area as f64 * el.open[l.recv as usize] as f64;
             let got = a * sol.links.gather(l, el).element_sum();
             let want = a * brute_irradiance(el, &covers, caster, re, l.src, m, &mut rng);
-            let mut leaves = Vec::new();
-            el.leaves_of(l.src, &mut leaves);
-            let sobj = scene.tri_object[el.elems[leaves[0] as usize].tri as usize] as usize;
+            let sobj = object_of(scene, el, l.src);
             let class = if se.kind == Kind::Cluster {
                 0
             } else if (re.centroid - se.centroid).length() < 2.0 * (re.area.max(se.area)).sqrt() {
