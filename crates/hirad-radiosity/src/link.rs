@@ -107,6 +107,14 @@ impl Deposit {
         (0..self.points()).filter(|&i| self.open(i)).count()
     }
 
+    /// True when some of its points' rays were open and some blocked: a shadow's outline
+    /// crosses the receiver.
+    pub fn mixed(self) -> bool {
+        let all = (1u32 << self.points()) - 1;
+        let open = (self.0 >> 4) & all;
+        open != 0 && open != all
+    }
+
     /// Path of point `i`.
     pub fn path(self, i: usize) -> u32 {
         (self.0 >> (8 + 6 * i)) & 0x3f
@@ -306,9 +314,9 @@ impl LinkSet {
 
 /// Sort `links` by (receiver, source). A refinement pass keeps most links of the sorted set
 /// before it in their order and adds the new ones: the links below the running maximum are
-/// set aside, sorted and merged back from the end, unless they are more than a quarter of the
-/// whole or more than `max_late` (then one parallel sort, in place: the set-aside copy would
-/// cost more memory than it saves time, or than a memory budget leaves).
+/// set aside, sorted and merged back from the end, unless they are more than a sixteenth of
+/// the whole or more than `max_late` (then one parallel sort, in place: the set-aside copy
+/// would cost more memory than it saves time, or than a memory budget leaves).
 fn sort_links(links: &mut [Link], max_late: usize) {
     let key = |l: &Link| ((l.recv as u64) << 32) | l.src as u64;
     let mut max = 0u64;
@@ -320,7 +328,7 @@ fn sort_links(links: &mut [Link], max_late: usize) {
             k < max
         })
         .count();
-    if late > (links.len() / 4).min(max_late) {
+    if late > (links.len() / 16).min(max_late) {
         links.par_sort_unstable_by_key(key);
         return;
     }
@@ -403,8 +411,17 @@ mod tests {
             [0b11_01_10, 0, 0b10_10_10]
         );
         assert_eq!([d.open(0), d.open(1), d.open(2)], [true, false, true]);
+        // Mixed: some rays open and some blocked, among the points it has (the mask's bits
+        // past them do not count).
+        assert!(d.mixed());
+        assert!(!Deposit::with_mask(&[1, 2], 0b1100).mixed());
+        assert!(!Deposit::with_mask(&[1, 2], 0b1111).mixed());
+        assert!(Deposit::with_mask(&[1, 2], 0b0010).mixed());
+        assert!(!Deposit::single(3, 1).mixed());
+        assert!(!Deposit(0).mixed());
         let all = Deposit::new(&[1, 2, 3, 4, 5]);
         assert_eq!((all.points(), all.open_points()), (4, 4));
+        assert!(!all.mixed());
         let t = all.truncated(1);
         assert_eq!((t.depth(), t.points(), t.path(3)), (1, 4, 4));
         let s = Deposit::single(0b01_11, 2);

@@ -44,6 +44,7 @@ impl Solver<'_> {
     pub(super) fn memory_now(&self, extra_links: usize) -> u64 {
         (self.el.memory_bytes()
             + (self.h_cluster.capacity() + self.k_sum.capacity()) * 8
+            + self.straddle.capacity()
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * size_of::<Link>()
             + self.entries.capacity() * size_of::<Entry>()
@@ -71,7 +72,7 @@ impl Solver<'_> {
         let leaves = roots + (surfaces - roots) * 3 / 4;
         let base = self.fixed
             + self.memory_now(0)
-            + (g.elements * (Elements::BYTES_PER_ELEMENT + 2 * 8 + 8)) as u64;
+            + (g.elements * (Elements::BYTES_PER_ELEMENT + 2 * 8 + 8 + 1)) as u64;
         let links = (g.links * size_of::<Link>()) as u64;
         // Samples the pending links will keep, at the ratio of the links kept so far.
         let per_kept = if self.kept_links >= 1000 {

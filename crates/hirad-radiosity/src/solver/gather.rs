@@ -10,9 +10,10 @@
 //! noise of a few points per link out of the walls.
 
 use super::push_pull::open_area;
-use super::Solver;
+use super::{Solver, STRADDLES};
 use crate::element::{Elements, Kind};
 use crate::link::Deposit;
+use crate::oracle;
 use crate::overlap::Covers;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -34,6 +35,8 @@ struct Gathered {
     h_cluster: f64,
     /// Sum of the link kernels (surface receivers).
     k_sum: f64,
+    /// Surface receivers: the oracle's value summed over the links whose rays disagreed.
+    mixed: f64,
     /// Cluster receivers: one entry per link.
     entries: Vec<Entry>,
     /// Surface receivers: transfers that land where their rays saw the source.
@@ -81,8 +84,13 @@ impl Solver<'_> {
         self.deposits.clear();
         self.dep_ranges.clear();
         self.dep_ranges.resize(self.el.len(), (0, 0));
+        self.straddle.resize(self.el.len(), 0);
+        for f in self.straddle.iter_mut() {
+            *f &= !STRADDLES;
+        }
         let n_groups = self.set.groups.len();
         let covers = &self.covers;
+        let ok = self.cfg.refine;
         // Exact capacities (what the memory budget projects): an entry per link into a
         // cluster, and for a subdivided surface the parts its light is shaped over.
         let (mut n_entries, mut n_deposits) = (0usize, 0usize);
@@ -110,6 +118,7 @@ impl Solver<'_> {
                     // The deposit and light of each link into a subdivided surface receiver.
                     lights.clear();
                     let re = &el.elems[r as usize];
+                    let rho = re.rho.as_dvec3();
                     let mut cells: Cells = [Cell::default(); 64];
                     let mut g = Gathered {
                         recv: r,
@@ -134,6 +143,9 @@ impl Solver<'_> {
                         } else {
                             if re.num_children > 0 {
                                 lights.push((l.deposit, contrib.element_sum()));
+                            }
+                            if l.deposit.mixed() {
+                                g.mixed += oracle::value(ok, 1.0, contrib, rho);
                             }
                             g.h += contrib;
                             g.k_sum += l.k as f64;
@@ -170,6 +182,9 @@ impl Solver<'_> {
                     self.el.h[id] += g.h;
                     self.h_cluster[id] = g.h_cluster;
                     self.k_sum[id] = g.k_sum;
+                    if g.mixed > self.eps {
+                        self.straddle[id] |= STRADDLES;
+                    }
                 }
             }
         }

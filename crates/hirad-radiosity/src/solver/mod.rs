@@ -39,6 +39,10 @@ use std::time::Instant;
 /// convergence; in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
 
+/// [`Solver::straddle`] flags.
+const STRADDLES: u8 = 1;
+const STRADDLE_DECIDED: u8 = 2;
+
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
 #[derive(Clone, Debug)]
 pub struct Solution {
@@ -195,6 +199,10 @@ struct Solver<'a> {
     h_cluster: Vec<f64>,
     /// Per element: sum of the kernels of its own links (surface receivers).
     k_sum: Vec<f64>,
+    /// Per element: [`STRADDLES`] when its mixed links carry more than the oracle allows
+    /// (`gather`), so refinement splits it for those links; [`STRADDLE_DECIDED`] once a
+    /// sweep has decided its links on that (`refine`).
+    straddle: Vec<u8>,
     root_irr: Vec<DVec3>,
     has_sun_sky: bool,
     /// Largest total power any converged solution can have (see the module docs).
@@ -292,6 +300,7 @@ impl<'a> Solver<'a> {
             covers,
             h_cluster: vec![0.0; el.len()],
             k_sum: vec![0.0; el.len()],
+            straddle: vec![0; el.len()],
             el,
             links: Vec::new(),
             set: LinkSet::default(),
@@ -480,7 +489,9 @@ impl Solver<'_> {
         st.rays = self.rays;
         st.memory.peak_counted_bytes = self.peak;
         st.memory.fixed_bytes = self.fixed;
-        st.memory.element_bytes = (self.el.memory_bytes() + self.h_cluster.capacity() * 8) as u64;
+        st.memory.element_bytes = (self.el.memory_bytes()
+            + self.h_cluster.capacity() * 8
+            + self.straddle.capacity()) as u64;
         st.memory.link_bytes = self.set.memory_bytes() as u64;
         st.memory.vm_hwm_bytes = stats::vm_hwm_bytes();
         st.memory.budget_bytes = self.cfg.max_memory;

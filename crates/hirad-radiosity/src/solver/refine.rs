@@ -18,10 +18,17 @@
 //! cluster's mean). When all of a directional cluster receiver's rays saw the source, each of
 //! its children that no sample landed on is tested with one more ray first: a blocked one
 //! makes the rays disagree (a cluster straddling a wall would otherwise light its far side).
+//!
+//! Outlines: the oracle judges each link alone, so a wall lit by a whole room keeps many weak
+//! links at a big element, and their light lands behind what hangs in front of it. A surface
+//! receiver whose links with disagreeing rays together carry more than the oracle allows
+//! (measured by the gather) sends those links to its children, down to the minimum area; its
+//! other links are drawn again with independent rays, once per receiver, so that none is
+//! kept for the outcome it was chosen on.
 
 use super::budget::Growth;
 use super::gather::Entry;
-use super::Solver;
+use super::{Solver, STRADDLES, STRADDLE_DECIDED};
 use crate::config::Oracle;
 use crate::element::Kind;
 use crate::formfactor::KernelCtx;
@@ -94,6 +101,11 @@ impl Solver<'_> {
             None => usize::MAX,
         };
         self.set = LinkSet::from_links(done, (&samples, &open), per_link, max_late);
+        for f in self.straddle.iter_mut() {
+            if *f & STRADDLES != 0 {
+                *f |= STRADDLE_DECIDED;
+            }
+        }
         self.note_peak();
         Ok(())
     }
@@ -194,6 +206,14 @@ impl Solver<'_> {
                 let n_before = self.h_cluster.len();
                 self.h_cluster.resize(self.el.len(), 0.0);
                 self.k_sum.resize(self.el.len(), 0.0);
+                // Children of a straddling receiver straddle until their own gather says.
+                self.straddle.resize(self.el.len(), 0);
+                for &id in &to_split {
+                    if self.straddle[id as usize] & STRADDLES != 0 {
+                        let first = self.el.elems[id as usize].first_child as usize;
+                        self.straddle[first..first + 4].fill(STRADDLES);
+                    }
+                }
                 if self.has_sun_sky {
                     self.compute_direct(n_before as u32, self.el.len() as u32);
                 }
@@ -352,6 +372,34 @@ impl Solver<'_> {
         if let Some(a) = split(link.est as f64) {
             return (a, link, rays, None);
         }
+        // A surface receiver whose mixed links together carry more than the oracle allows
+        // (a shadow's outline crosses it, [`Solver::straddle`]): those links go to its
+        // children down to the minimum area.
+        let straddles = allow
+            && r.kind == Kind::Surface
+            && self.straddle[ri as usize] & STRADDLES != 0
+            && r.area as f64 > self.min_area;
+        // Rays independent of those a decision was taken on: a link kept because its rays
+        // agreed would otherwise keep the outcome it was chosen for (all open or all blocked).
+        // Each sweep draws them anew.
+        let fresh = KernelCtx {
+            seed: ctx.seed
+                ^ 0x0DD5_EED5_0F5E_ED00
+                ^ (self.stats.refinements as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+            ..*ctx
+        };
+        // A link evaluated in an earlier sweep on a receiver that straddles since: split when
+        // its rays disagree, else drawn again (once: a later sweep would decide on the new
+        // rays and keep what it chose).
+        let redrawn =
+            straddles && link.evaluated() && self.straddle[ri as usize] & STRADDLE_DECIDED == 0;
+        if redrawn {
+            if link.deposit.mixed() {
+                return (Action::SplitRecv, *l, rays, None);
+            }
+            link.samples = NO_SAMPLES;
+            link.open_members = NO_SAMPLES;
+        }
         // A subdivided surface source whose children's radiosity differs by more than the
         // oracle allows: its samples take the radiosity of the leaf they land on (a link
         // evaluated before, on the mean, is evaluated again).
@@ -368,7 +416,7 @@ impl Solver<'_> {
         if leaves && allow && ctx.is_near_field(ri, sj) {
             return (Action::SplitSrc, link, rays, None);
         }
-        if !link.evaluated() || (leaves && link.samples == NO_SAMPLES) {
+        if !link.evaluated() || (leaves && link.samples == NO_SAMPLES) || redrawn {
             // The oracle asks for refinement, but both ends are at their minimum size.
             let unresolved = allow
                 && oracle::wants_refine(
@@ -381,7 +429,8 @@ impl Solver<'_> {
             let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let ev = ctx.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                    let c = if redrawn { &fresh } else { ctx };
+                    let ev = c.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                     rays += ev.rays;
                     ev
                 }
@@ -393,8 +442,10 @@ impl Solver<'_> {
             // element apart (the lit side of a shadow, a ceiling beside a lamp). Keeping or
             // splitting on the rays' outcome would bias the kept links (those whose rays all
             // missed the source would stay, those that saw it would be drawn again), so a kept
-            // link that could have split takes a kernel from independent rays.
-            if unresolved && r.kind == Kind::Surface {
+            // link that could have split takes a kernel from independent rays; so does one
+            // kept on a straddling receiver because its rays agreed.
+            let mut redraw = false;
+            if unresolved && r.kind == Kind::Surface && !redrawn {
                 if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
                     let varies = || {
                         let (fmin, fmax) = spread.unwrap_or_else(|| ctx.spread(ri, sj));
@@ -409,13 +460,18 @@ impl Solver<'_> {
                     if ev.mixed || varies() {
                         return (a, *l, rays, None);
                     }
-                    let fresh = KernelCtx {
-                        seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
-                        ..*ctx
-                    };
-                    ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
-                    rays += ev.rays;
+                    redraw = true;
                 }
+            }
+            if straddles && !redrawn {
+                if ev.deposit.mixed() {
+                    return (Action::SplitRecv, *l, rays, None);
+                }
+                redraw = true;
+            }
+            if redraw {
+                ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                rays += ev.rays;
             }
             link.k = ev.k as f32;
             link.deposit = ev.deposit;
