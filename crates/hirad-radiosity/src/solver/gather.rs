@@ -7,7 +7,9 @@
 //! (capped at the receiver's mean) going to its open points and weighed against its share of
 //! all points ([`Cell`]). So the many weak links no oracle refines do not light what
 //! furniture hides, a dark link does not outvote a bright one, and the pooled ratio keeps the
-//! noise of a few points per link out of the walls.
+//! noise of a few points per link out of the walls. It also sums, per surface receiver, the
+//! oracle's value of the links whose rays disagreed: above ε the receiver straddles a shadow's
+//! outline, and refinement splits it for those links (`refine`).
 
 use super::push_pull::open_area;
 use super::{Solver, STRADDLES};
