@@ -329,6 +329,95 @@ fn wall_irradiance(
     (solver / n as f64, path / n as f64)
 }
 
+/// The hung-panel scene of the test below.
+fn hung_panel() -> Scene {
+    let (mut q, mats) = room_parts(false);
+    let o = Vec3::new(0.03, 0.5, 0.5);
+    q.push(rect(o, Vec3::Y, Vec3::Z, GREY, 24));
+    q.push(rect(o, Vec3::Z, Vec3::Y, GREY, 25));
+    quads_scene(&q, mats)
+}
+
+#[test]
+fn surface_links_deliver_what_monte_carlo_finds_between_their_ends() {
+    // Every link between two surfaces, its delivered power (receiver area × open fraction ×
+    // K·B) against Monte Carlo between its ends with exact visibility and the radiosity of
+    // the source leaf each sample lands on, summed. On the hung panel many links are split
+    // or kept on the outcome of their own rays; a kept link keeping the outcome it was
+    // chosen for (all its rays open, or all blocked) delivers 0.4% too much in all (256
+    // samples per link: three seeds of the sum agree within 0.02%).
+    use hirad::radiosity::element::Kind;
+    use hirad::radiosity::overlap::Covers;
+    use rayon::prelude::*;
+    let scene = hung_panel();
+    let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+    let sol = solve_with(&scene, &tree, SolverConfig::default());
+    let caster = RayCaster::new(&scene, &tree);
+    let covers = Covers::build(&scene, &tree, false);
+    let el = &sol.elements;
+    let (got, want): (f64, f64) = sol
+        .links
+        .links
+        .par_iter()
+        .enumerate()
+        .filter(|(_, l)| {
+            el.elems[l.recv as usize].kind == Kind::Surface
+                && el.elems[l.src as usize].kind == Kind::Surface
+        })
+        .map(|(i, l)| {
+            let (re, se) = (&el.elems[l.recv as usize], &el.elems[l.src as usize]);
+            let got = re.area as f64
+                * el.open[l.recv as usize] as f64
+                * sol.links.gather(l, el).element_sum();
+            let mut leaves = Vec::new();
+            el.leaves_of(l.src, &mut leaves);
+            let cdf: Vec<f64> = leaves
+                .iter()
+                .scan(0.0, |a, &s| {
+                    *a += el.elems[s as usize].area as f64;
+                    Some(*a)
+                })
+                .collect();
+            let src_area = se.area as f64;
+            let mut rng = SplitMix64::new(i as u64 * 977 + 5);
+            let n = 256;
+            let mut acc = 0.0;
+            for _ in 0..n {
+                let x = sample_triangle(&re.verts, rng.next_f32(), rng.next_f32());
+                let u = rng.next_f64() * cdf[cdf.len() - 1];
+                let sid = leaves[cdf.partition_point(|&c| c < u).min(leaves.len() - 1)];
+                let es = &el.elems[sid as usize];
+                let y = sample_triangle(&es.verts, rng.next_f32(), rng.next_f32());
+                let d = y - x;
+                let r2 = d.length_squared();
+                let w = d / r2.sqrt();
+                let (cx, cy) = (re.normal.dot(w), -es.normal.dot(w));
+                if cx <= 0.0
+                    || cy <= 0.0
+                    || covers.covered(re.tri, re.normal, x)
+                    || covers.covered(es.tri, es.normal, y)
+                {
+                    continue;
+                }
+                let (a, b) = (x + re.normal * 2e-6, y + es.normal * 2e-6);
+                let t = b - a;
+                let tl = t.length();
+                if caster.occluded(a, t / tl, 0.0, tl * (1.0 - 1e-5)) {
+                    continue;
+                }
+                let g = (cx * cy) as f64 / (std::f64::consts::PI * r2 as f64) * src_area;
+                acc += el.b[sid as usize].element_sum() * g;
+            }
+            (got, re.area as f64 * acc / n as f64)
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    eprintln!("surface links: delivered {got:.4} W, Monte Carlo {want:.4} W");
+    assert!(
+        (got / want - 1.0).abs() < 0.0025,
+        "delivered {got} against Monte Carlo {want}"
+    );
+}
+
 #[test]
 #[ignore = "issue 19, not met: behind the panel the solver is off by 5.2% of the open wall's \
             irradiance (the target is 5%), where the path tracer finds 0.5%"]
@@ -337,11 +426,7 @@ fn the_wall_behind_a_hung_panel_gets_only_what_comes_through_the_gap() {
     // front faces the room, its back faces the wall. The wall is two big triangles whose links
     // straddle the panel's outline; the panel's back lights the wall behind it, but it is dark
     // (lit only through the gap), so its open rays must not draw the room's light there.
-    let (mut q, mats) = room_parts(false);
-    let o = Vec3::new(0.03, 0.5, 0.5);
-    q.push(rect(o, Vec3::Y, Vec3::Z, GREY, 24));
-    q.push(rect(o, Vec3::Z, Vec3::Y, GREY, 25));
-    let scene = quads_scene(&q, mats);
+    let scene = hung_panel();
     let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
     let sol = solve_with(&scene, &tree, SolverConfig::default());
     let caster = RayCaster::new(&scene, &tree);
