@@ -8,8 +8,9 @@
 //! all points ([`Cell`]). So the many weak links no oracle refines do not light what
 //! furniture hides, a dark link does not outvote a bright one, and the pooled ratio keeps the
 //! noise of a few points per link out of the walls. It also sums, per surface receiver, the
-//! oracle's value of the links whose rays disagreed: above ε the receiver straddles a shadow's
-//! outline, and refinement splits it for those links (`refine`).
+//! light of the links whose rays disagreed (`K·B`, `ρ·K·B` for the `error` oracle): above ε
+//! the receiver straddles a shadow's outline, and refinement splits it for those links
+//! (`refine`).
 
 use super::push_pull::open_area;
 use super::{Solver, STRADDLES};
@@ -37,7 +38,7 @@ struct Gathered {
     h_cluster: f64,
     /// Sum of the link kernels (surface receivers).
     k_sum: f64,
-    /// Surface receivers: the oracle's value summed over the links whose rays disagreed.
+    /// Surface receivers: the light of the links whose rays disagreed (see the module doc).
     mixed: f64,
     /// Cluster receivers: one entry per link.
     entries: Vec<Entry>,

@@ -39,8 +39,9 @@ use std::time::Instant;
 /// convergence; in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
 
-/// [`Solver::straddle`] flags.
+/// [`Solver::straddle`]: the element's links with disagreeing rays carry more than ε.
 const STRADDLES: u8 = 1;
+/// [`Solver::straddle`]: a sweep has decided the element's links on [`STRADDLES`].
 const STRADDLE_DECIDED: u8 = 2;
 
 /// A finished solve: the element hierarchy with its radiosity, the links and the statistics.
@@ -199,7 +200,8 @@ struct Solver<'a> {
     h_cluster: Vec<f64>,
     /// Per element: sum of the kernels of its own links (surface receivers).
     k_sum: Vec<f64>,
-    /// Per element: [`STRADDLES`] when its mixed links carry more than the oracle allows
+    /// Per element: [`STRADDLES`] when its mixed links' light (`K·B`, `ρ·K·B` for the `error`
+    /// oracle) passes ε
     /// (`gather`), so refinement splits it for those links; [`STRADDLE_DECIDED`] once a
     /// sweep has decided its links on that (`refine`).
     straddle: Vec<u8>,

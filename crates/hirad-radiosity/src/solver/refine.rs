@@ -22,9 +22,10 @@
 //! Outlines: the oracle judges each link alone, so a wall lit by a whole room keeps many weak
 //! links at a big element, and their light lands behind what hangs in front of it. A surface
 //! receiver whose links with disagreeing rays together carry more than the oracle allows
-//! (measured by the gather) sends those links to its children, down to the minimum area; its
-//! other links are drawn again with independent rays, once per receiver, so that none is
-//! kept for the outcome it was chosen on.
+//! (measured by the gather) sends those links to its children, down to the minimum area; the
+//! links it keeps are drawn again with independent rays, so that none is kept for the outcome
+//! it was chosen on (those of earlier sweeps once per receiver). Any link evaluated again
+//! takes rays independent of those it was kept on.
 
 use super::budget::Growth;
 use super::gather::Entry;
@@ -206,16 +207,23 @@ impl Solver<'_> {
                 let n_before = self.h_cluster.len();
                 self.h_cluster.resize(self.el.len(), 0.0);
                 self.k_sum.resize(self.el.len(), 0.0);
-                // Children of a straddling receiver straddle until their own gather says.
                 self.straddle.resize(self.el.len(), 0);
-                for &id in &to_split {
-                    if self.straddle[id as usize] & STRADDLES != 0 {
-                        let first = self.el.elems[id as usize].first_child as usize;
-                        self.straddle[first..first + 4].fill(STRADDLES);
-                    }
-                }
                 if self.has_sun_sky {
                     self.compute_direct(n_before as u32, self.el.len() as u32);
+                }
+            }
+            // Children of a straddling receiver split here straddle until their own gather
+            // says (new children, and those it had).
+            for (a, l, _, _) in &decided {
+                let id = l.recv as usize;
+                if *a == Action::SplitRecv && self.straddle[id] & STRADDLES != 0 {
+                    let e = &self.el.elems[id];
+                    if e.kind == Kind::Surface {
+                        let first = e.first_child as usize;
+                        for f in &mut self.straddle[first..first + 4] {
+                            *f |= STRADDLES;
+                        }
+                    }
                 }
             }
             next.reserve(new_links);
@@ -416,6 +424,9 @@ impl Solver<'_> {
         if leaves && allow && ctx.is_near_field(ri, sj) {
             return (Action::SplitSrc, link, rays, None);
         }
+        // A link evaluated before is evaluated again (drawn anew, or for its source's leaves)
+        // with rays independent of those it was kept on, and not decided on them again.
+        let again = l.evaluated();
         if !link.evaluated() || (leaves && link.samples == NO_SAMPLES) || redrawn {
             // The oracle asks for refinement, but both ends are at their minimum size.
             let unresolved = allow
@@ -429,7 +440,7 @@ impl Solver<'_> {
             let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let c = if redrawn { &fresh } else { ctx };
+                    let c = if again { &fresh } else { ctx };
                     let ev = c.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                     rays += ev.rays;
                     ev
@@ -445,7 +456,7 @@ impl Solver<'_> {
             // link that could have split takes a kernel from independent rays; so does one
             // kept on a straddling receiver because its rays agreed.
             let mut redraw = false;
-            if unresolved && r.kind == Kind::Surface && !redrawn {
+            if unresolved && r.kind == Kind::Surface && !again {
                 if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
                     let varies = || {
                         let (fmin, fmax) = spread.unwrap_or_else(|| ctx.spread(ri, sj));
@@ -463,7 +474,7 @@ impl Solver<'_> {
                     redraw = true;
                 }
             }
-            if straddles && !redrawn {
+            if straddles && !again {
                 if ev.deposit.mixed() {
                     return (Action::SplitRecv, *l, rays, None);
                 }
