@@ -24,8 +24,8 @@
 //! receiver whose links with disagreeing rays together carry more than the oracle allows
 //! (measured by the gather) sends those links to its children, down to the minimum area; the
 //! links it keeps are drawn again with independent rays, so that none is kept for the outcome
-//! it was chosen on (those of earlier sweeps once per receiver). Any link evaluated again
-//! takes rays independent of those it was kept on.
+//! it was chosen on (those of earlier sweeps once per receiver). A link evaluated again for
+//! its source's leaves takes rays independent of those it was first kept on.
 
 use super::budget::Growth;
 use super::gather::Entry;
@@ -213,7 +213,8 @@ impl Solver<'_> {
                 }
             }
             // Children of a straddling receiver split here straddle until their own gather
-            // says (new children, and those it had).
+            // says: new ones, and those it had, whose own links were kept on other grounds
+            // (marked decided: only the links coming down are decided on their rays).
             for (a, l, _, _) in &decided {
                 let id = l.recv as usize;
                 if *a == Action::SplitRecv && self.straddle[id] & STRADDLES != 0 {
@@ -221,7 +222,9 @@ impl Solver<'_> {
                     if e.kind == Kind::Surface {
                         let first = e.first_child as usize;
                         for f in &mut self.straddle[first..first + 4] {
-                            *f |= STRADDLES;
+                            if *f & STRADDLES == 0 {
+                                *f |= STRADDLES | STRADDLE_DECIDED;
+                            }
                         }
                     }
                 }
@@ -440,7 +443,19 @@ impl Solver<'_> {
             let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let c = if again { &fresh } else { ctx };
+                    // The same rays in every sweep for a link evaluated again for its source's
+                    // leaves (the solution would not settle otherwise).
+                    let again_ctx = KernelCtx {
+                        seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
+                        ..*ctx
+                    };
+                    let c = if redrawn {
+                        &fresh
+                    } else if again {
+                        &again_ctx
+                    } else {
+                        ctx
+                    };
                     let ev = c.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                     rays += ev.rays;
                     ev
