@@ -392,10 +392,15 @@ impl Solver<'_> {
             && r.area as f64 > self.min_area;
         // Rays independent of those a decision was taken on: a link kept because its rays
         // agreed would otherwise keep the outcome it was chosen for (all open or all blocked).
-        // Each sweep draws them anew.
+        // `independent` gives the same rays in every sweep (a link evaluated again for its
+        // source's leaves: the solution would not settle otherwise), `fresh` new ones each
+        // sweep (a link drawn anew, whose earlier rays came from either).
+        let independent = KernelCtx {
+            seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
+            ..*ctx
+        };
         let fresh = KernelCtx {
-            seed: ctx.seed
-                ^ 0x0DD5_EED5_0F5E_ED00
+            seed: independent.seed
                 ^ (self.stats.refinements as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
             ..*ctx
         };
@@ -443,16 +448,10 @@ impl Solver<'_> {
             let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    // The same rays in every sweep for a link evaluated again for its source's
-                    // leaves (the solution would not settle otherwise).
-                    let again_ctx = KernelCtx {
-                        seed: ctx.seed ^ 0x0DD5_EED5_0F5E_ED00,
-                        ..*ctx
-                    };
                     let c = if redrawn {
                         &fresh
                     } else if again {
-                        &again_ctx
+                        &independent
                     } else {
                         ctx
                     };
