@@ -2,7 +2,7 @@
 //! grouped by receiver after each refinement (CSR-like groups, see [`LinkSet`]).
 
 use super::element::{Elements, Kind};
-use rayon::slice::ParallelSliceMut;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// A link from `src` to `recv`: the receiver gathers `k · B_src` (irradiance, W/m²).
@@ -132,6 +132,12 @@ pub const NO_MEMBER: u32 = u32::MAX;
 pub type Sample = (u32, f32);
 
 impl Link {
+    /// The sort key of a link set: (receiver, source).
+    #[inline]
+    pub fn key(&self) -> u64 {
+        ((self.recv as u64) << 32) | self.src as u64
+    }
+
     /// A link whose kernel is not evaluated yet.
     pub fn new(recv: u32, src: u32) -> Self {
         Self {
@@ -239,39 +245,32 @@ impl LinkSet {
         &self.open_members[s + 1..s + 1 + n]
     }
 
-    /// Sort `links` by (receiver, source) and build the groups; `samples` holds the samples the
-    /// links refer to (`per_link` each) and `open` their open surfaces' runs, compacted here
-    /// to those of the links kept. The sort sets aside at most `max_late` links beside them
-    /// (see `sort_links`).
+    /// Sort the `kept` links by (receiver, source) and build the groups; `samples` holds the
+    /// samples the links refer to (`per_link` each) and `open` their open surfaces' runs,
+    /// compacted here to those of the links kept.
     pub fn from_links(
-        mut links: Vec<Link>,
-        (samples, open): (&[Sample], &[Sample]),
+        kept: Kept,
+        (samples, open): (Vec<Sample>, Vec<Sample>),
         per_link: u32,
-        max_late: usize,
     ) -> LinkSet {
-        let pl = per_link as usize;
-        let mut kept = Vec::new();
-        let mut kept_open = Vec::new();
-        for l in links.iter_mut() {
-            if l.samples != NO_SAMPLES {
-                let s = l.samples as usize;
-                l.samples = kept.len() as u32;
-                kept.extend_from_slice(&samples[s..s + pl]);
-            }
-            if l.open_members != NO_SAMPLES {
-                let s = l.open_members as usize;
-                let n = open[s].0 as usize;
-                l.open_members = kept_open.len() as u32;
-                kept_open.extend_from_slice(&open[s..s + 1 + n]);
-            }
-        }
+        let Kept {
+            mut links,
+            mut late,
+            ..
+        } = kept;
+        let out = compact(
+            [&mut links, &mut late],
+            (&samples, &open),
+            per_link as usize,
+        );
+        // Given back before the merge, which needs room.
+        drop((samples, open));
         // (receiver, source) orders the links completely: the order does not depend on the
         // sort or the thread count.
-        sort_links(&mut links, max_late);
+        late.par_sort_unstable_by_key(Link::key);
+        merge_late(&mut links, late);
         // Held for the rest of the solve: no spare capacity (the memory budget counts it).
         links.shrink_to_fit();
-        kept.shrink_to_fit();
-        kept_open.shrink_to_fit();
         let mut groups = Vec::new();
         let mut s = 0usize;
         while s < links.len() {
@@ -287,9 +286,9 @@ impl LinkSet {
         LinkSet {
             links,
             groups,
-            samples: kept,
+            samples: out.0,
             per_link,
-            open_members: kept_open,
+            open_members: out.1,
         }
     }
 
@@ -312,67 +311,159 @@ impl LinkSet {
     }
 }
 
-/// Sort `links` by (receiver, source). A refinement pass keeps most links of the sorted set
-/// before it in their order and adds the new ones: the links below the running maximum are
-/// set aside, sorted and merged back from the end, unless they are more than a sixteenth of
-/// the whole or more than `max_late` (then one parallel sort, in place: the set-aside copy
-/// would cost more memory than it saves time, or than a memory budget leaves).
-fn sort_links(links: &mut [Link], max_late: usize) {
-    let key = |l: &Link| ((l.recv as u64) << 32) | l.src as u64;
-    let mut max = 0u64;
-    let late = links
-        .iter()
-        .filter(|l| {
-            let k = key(l);
-            max = max.max(k);
-            k < max
-        })
-        .count();
-    if late > (links.len() / 16).min(max_late) {
-        links.par_sort_unstable_by_key(key);
-        return;
+/// The links a refinement sweep keeps, in the order decided: `links` are those at or above
+/// the running maximum of (receiver, source), hence in order (a sweep keeps most links of the
+/// sorted set before it in their order), and `late` the others, which
+/// [`LinkSet::from_links`] sorts and merges in.
+#[derive(Debug, Default)]
+pub struct Kept {
+    links: Vec<Link>,
+    late: Vec<Link>,
+    max: u64,
+}
+
+impl Kept {
+    /// Starts from `links`, in (receiver, source) order; links pushed after them go where
+    /// they had room.
+    pub fn sorted(links: Vec<Link>) -> Kept {
+        debug_assert!(links.windows(2).all(|w| w[0].key() < w[1].key()));
+        Kept {
+            max: links.last().map_or(0, Link::key),
+            links,
+            late: Vec::new(),
+        }
     }
-    let mut rest = Vec::with_capacity(late);
-    let mut kept = 0;
-    let mut max = 0u64;
-    for r in 0..links.len() {
-        let l = links[r];
-        let k = key(&l);
-        if k >= max {
-            max = k;
-            links[kept] = l;
-            kept += 1;
+
+    /// Adds `l` after the links kept so far.
+    pub fn push(&mut self, l: Link) {
+        let k = l.key();
+        if k >= self.max {
+            self.max = k;
+            self.links.push(l);
         } else {
-            rest.push(l);
+            self.late.push(l);
         }
     }
-    rest.par_sort_unstable_by_key(key);
-    // Merge from the back: `links[..kept]` and `rest`, both sorted, into `links`.
-    let (mut i, mut j) = (kept, rest.len());
-    for k in (0..links.len()).rev() {
-        if j == 0 {
-            break;
+
+    /// Number of links kept.
+    pub fn len(&self) -> usize {
+        self.links.len() + self.late.len()
+    }
+
+    /// True when no link is kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Copies the samples and open runs that the links of `parts` refer to into new arrays, in
+/// the links' order, and points the links at the copies. Blocks of links copy in parallel,
+/// each where the counts of the blocks before it put it.
+fn compact(
+    parts: [&mut [Link]; 2],
+    (samples, open): (&[Sample], &[Sample]),
+    per_link: usize,
+) -> (Vec<Sample>, Vec<Sample>) {
+    const BLOCK: usize = 1 << 14;
+    let run = |l: &Link| match l.open_members {
+        NO_SAMPLES => 0,
+        s => 1 + open[s as usize].0 as usize,
+    };
+    let has = |l: &Link| if l.samples == NO_SAMPLES { 0 } else { per_link };
+    let mut blocks: Vec<&mut [Link]> = parts
+        .into_iter()
+        .flat_map(|p| p.chunks_mut(BLOCK))
+        .collect();
+    let counts: Vec<(usize, usize)> = blocks
+        .par_iter()
+        .map(|c| c.iter().fold((0, 0), |(a, b), l| (a + has(l), b + run(l))))
+        .collect();
+    let total = counts.iter().fold((0, 0), |(a, b), &(x, y)| (a + x, b + y));
+    // Zeroed by the allocator, so the pages are first touched by the parallel copies.
+    let mut out = vec![(0u32, 0f32); total.0];
+    let mut out_open = vec![(0u32, 0f32); total.1];
+    let (mut rest, mut rest_open) = (&mut out[..], &mut out_open[..]);
+    let mut dest = Vec::with_capacity(counts.len());
+    let mut at = (0, 0);
+    for &(x, y) in &counts {
+        let (p, r) = std::mem::take(&mut rest).split_at_mut(x);
+        let (q, r_open) = std::mem::take(&mut rest_open).split_at_mut(y);
+        (rest, rest_open) = (r, r_open);
+        dest.push((p, q, at));
+        at = (at.0 + x, at.1 + y);
+    }
+    blocks
+        .par_iter_mut()
+        .zip(dest)
+        .for_each(|(c, (p, q, (s_at, o_at)))| {
+            let (mut i, mut j) = (0, 0);
+            for l in c.iter_mut() {
+                if l.samples != NO_SAMPLES {
+                    let s = l.samples as usize;
+                    p[i..i + per_link].copy_from_slice(&samples[s..s + per_link]);
+                    l.samples = (s_at + i) as u32;
+                    i += per_link;
+                }
+                let n = run(l);
+                if n > 0 {
+                    let s = l.open_members as usize;
+                    q[j..j + n].copy_from_slice(&open[s..s + n]);
+                    l.open_members = (o_at + j) as u32;
+                    j += n;
+                }
+            }
+        });
+    (out, out_open)
+}
+
+/// Merges `late`, sorted, into `links`, sorted, from the back. `late` gives its memory back
+/// as it is consumed, so the two hold little more than the merged links at any time (a copy
+/// set aside beside them would raise the solve's peak memory).
+fn merge_late(links: &mut Vec<Link>, mut late: Vec<Link>) {
+    /// Links consumed from `late` between two returns of its memory.
+    const RELEASE: usize = 1 << 16;
+    let n = links.len() + late.len();
+    links.reserve_exact(late.len());
+    let (mut i, mut j) = (links.len(), late.len());
+    let mut released = j;
+    let base = links.as_mut_ptr();
+    // Invariant: i + j = k, the number of positions not yet written.
+    while j > 0 {
+        let k = i + j - 1;
+        // SAFETY: `k < n ≤ capacity`. Positions below `i` hold the links not yet merged,
+        // untouched; every write goes to `k ≥ i`, past them. The loop ends with every position
+        // in `i..n` written once and those below `i` original, so all `n` are initialised.
+        unsafe {
+            let v = if i > 0 && (*base.add(i - 1)).key() > late[j - 1].key() {
+                i -= 1;
+                *base.add(i)
+            } else {
+                j -= 1;
+                late[j]
+            };
+            base.add(k).write(v);
         }
-        if i > 0 && key(&links[i - 1]) > key(&rest[j - 1]) {
-            links[k] = links[i - 1];
-            i -= 1;
-        } else {
-            links[k] = rest[j - 1];
-            j -= 1;
+        if released - j >= RELEASE {
+            late.truncate(j);
+            late.shrink_to_fit();
+            released = j;
         }
     }
+    // SAFETY: see above.
+    unsafe { links.set_len(n) };
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{sort_links, Deposit, Link};
+    use super::{merge_late, Deposit, Kept, Link, LinkSet, NO_SAMPLES};
     use hirad_core::rng::SplitMix64;
 
     #[test]
-    fn sort_links_orders_by_receiver_then_source() {
+    fn link_sets_order_links_by_receiver_then_source_and_keep_their_samples() {
         let mut rng = SplitMix64::new(7);
         let mut r = |n: u64| (rng.next_u64() % n) as u32;
-        // A sorted set with new links after it (the merge) and a shuffled one (the full sort).
+        // A sorted set with new links after it, some of them late, and a shuffled one; every
+        // link that carries samples or open surfaces points at its own, tagged by its key.
         let mut sorted: Vec<Link> = (0..3000).map(|_| Link::new(r(500), r(500))).collect();
         sorted.sort_by_key(|l| (l.recv, l.src));
         sorted.dedup_by_key(|l| (l.recv, l.src));
@@ -380,22 +471,79 @@ mod tests {
         extra.extend((0..200).map(|_| Link::new(r(500), 500 + r(50))));
         extra.sort_by_key(|l| (l.recv, l.src));
         extra.dedup_by_key(|l| (l.recv, l.src));
-        for late in [extra.len(), 0] {
-            let mut links = sorted.clone();
-            links.extend_from_slice(&extra[..late]);
-            let mut want = links.clone();
-            want.sort_by_key(|l| (l.recv, l.src));
-            let mut shuffled = links.clone();
-            for i in (1..shuffled.len()).rev() {
-                shuffled.swap(i, r(i as u64 + 1) as usize);
-            }
-            // usize::MAX: merge where few are out of order; 0: always the full sort.
-            for (mut got, max_late) in [(links.clone(), usize::MAX), (links, 0), (shuffled, 99)] {
-                sort_links(&mut got, max_late);
-                let keys = |v: &[Link]| v.iter().map(|l| (l.recv, l.src)).collect::<Vec<_>>();
-                assert_eq!(keys(&got), keys(&want));
-            }
+        let mut shuffled: Vec<Link> = sorted.iter().chain(&extra).copied().collect();
+        for i in (1..shuffled.len()).rev() {
+            shuffled.swap(i, r(i as u64 + 1) as usize);
         }
+        let per_link = 3;
+        let tag = |l: &Link| (l.recv * 1000 + l.src) as f32;
+        for links in [
+            sorted.iter().chain(&extra).copied().collect::<Vec<_>>(),
+            sorted.clone(),
+            shuffled,
+        ] {
+            let (mut samples, mut open) = (vec![(7, 0.0)], vec![(0, 0.0)]);
+            let mut kept = Kept::default();
+            for (i, &l) in links.iter().enumerate() {
+                let mut l = l;
+                if i % 3 == 0 {
+                    l.samples = samples.len() as u32;
+                    samples.extend((0..per_link).map(|m| (m, tag(&l))));
+                }
+                if i % 5 == 0 {
+                    l.open_members = open.len() as u32;
+                    open.push((2, 0.0));
+                    open.extend([(1, tag(&l)), (2, tag(&l))]);
+                }
+                kept.push(l);
+            }
+            let set = LinkSet::from_links(kept, (samples, open), per_link);
+            let mut want: Vec<_> = links.iter().map(|l| (l.recv, l.src)).collect();
+            want.sort();
+            let got: Vec<_> = set.links.iter().map(|l| (l.recv, l.src)).collect();
+            assert_eq!(got, want);
+            let with_samples = links.iter().step_by(3).count();
+            assert_eq!(set.samples.len(), with_samples * per_link as usize);
+            for l in &set.links {
+                if l.samples != NO_SAMPLES {
+                    let s = l.samples as usize;
+                    assert_eq!(
+                        set.samples[s..s + 3],
+                        [(0, tag(l)), (1, tag(l)), (2, tag(l))]
+                    );
+                }
+                let o = set.open_members(l);
+                assert!(o.is_empty() || o == [(1, tag(l)), (2, tag(l))]);
+            }
+            let with_open = set.links.iter().filter(|l| l.open_members != NO_SAMPLES);
+            assert_eq!(with_open.count(), links.iter().step_by(5).count());
+            assert_eq!(set.groups.len(), {
+                let mut r: Vec<_> = want.iter().map(|w| w.0).collect();
+                r.dedup();
+                r.len()
+            });
+        }
+    }
+
+    #[test]
+    fn merging_late_links_from_the_back_keeps_every_link_in_order() {
+        // More late links than one release step, interleaved with the ordered ones.
+        let keys = |v: &[Link]| v.iter().map(Link::key).collect::<Vec<_>>();
+        let ordered: Vec<Link> = (0..200_000).map(|i| Link::new(2 * i, 0)).collect();
+        let mut late: Vec<Link> = (0..150_000).map(|i| Link::new(2 * i + 1, 1)).collect();
+        late.extend((0..10).map(|i| Link::new(1_000_000 + i, 0)));
+        let mut links = ordered.clone();
+        merge_late(&mut links, late.clone());
+        let mut want: Vec<Link> = ordered.into_iter().chain(late).collect();
+        want.sort_by_key(Link::key);
+        assert_eq!(keys(&links), keys(&want));
+        // Nothing late, and nothing in order.
+        let mut none = want.clone();
+        merge_late(&mut none, Vec::new());
+        assert_eq!(keys(&none), keys(&want));
+        let mut empty = Vec::new();
+        merge_late(&mut empty, want.clone());
+        assert_eq!(keys(&empty), keys(&want));
     }
 
     #[test]

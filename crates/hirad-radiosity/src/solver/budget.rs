@@ -6,7 +6,7 @@
 //! per-root results), and the output mesh written from the solution.
 
 use super::gather::Entry;
-use super::refine::Decided;
+use super::refine::Decision;
 use super::Solver;
 use crate::element::Elements;
 use crate::link::{Deposit, Link, Sample};
@@ -84,7 +84,7 @@ impl Solver<'_> {
             ((g.samples as f64 + g.pending as f64 * per_kept) * size_of::<Sample>() as f64) as u64;
         // A chunk held while it is decided: its links, their decisions and new samples.
         let per_link = size_of::<Link>()
-            + size_of::<Decided>()
+            + size_of::<Decision>()
             + self.cfg.shadow_rays as usize * size_of::<Sample>();
         let refine = links + 2 * samples + (g.chunk * per_link) as u64;
         let gather = if self.kept_links >= 1000 {

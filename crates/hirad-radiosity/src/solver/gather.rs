@@ -80,10 +80,29 @@ impl Solver<'_> {
         for v in self.k_sum.iter_mut() {
             *v = 0.0;
         }
-        self.entries.clear();
-        for r in self.cl_ranges.iter_mut() {
-            *r = (0, 0);
+        // A cluster receiver's entries carry its links' geometry, which only refinement changes
+        // (it empties them): a later gather on the same links updates their irradiance in
+        // place. Entries lie in the order of the groups.
+        let mut entries = std::mem::take(&mut self.entries);
+        let update = !entries.is_empty();
+        let mut slots: Vec<&mut [Entry]> = Vec::new();
+        if update {
+            let mut rest = &mut entries[..];
+            for &(r, _, _) in &self.set.groups {
+                let (a, b) = match self.cl_ranges.get(r as usize) {
+                    Some(&(a, b)) if self.el.elems[r as usize].kind == Kind::Cluster => (a, b),
+                    _ => (0, 0),
+                };
+                let (slot, after) = std::mem::take(&mut rest).split_at_mut((b - a) as usize);
+                slots.push(slot);
+                rest = after;
+            }
+        } else {
+            for r in self.cl_ranges.iter_mut() {
+                *r = (0, 0);
+            }
         }
+        let mut built: Vec<Entry> = Vec::new();
         self.deposits.clear();
         self.dep_ranges.clear();
         self.dep_ranges.resize(self.el.len(), (0, 0));
@@ -109,61 +128,80 @@ impl Solver<'_> {
                 n_deposits += 1 << (2 * shape_depth(samples as u64));
             }
         }
-        self.entries.reserve_exact(n_entries);
+        if !update {
+            built.reserve_exact(n_entries);
+        }
         self.deposits.reserve_exact(n_deposits);
+        let mut slot_chunks = slots.chunks_mut(GATHER_CHUNK);
         for start in (0..n_groups).step_by(GATHER_CHUNK) {
             let el = &self.el;
             let set = &self.set;
             let links = &set.links;
-            let res: Vec<Gathered> = set.groups[start..(start + GATHER_CHUNK).min(n_groups)]
+            let groups = &set.groups[start..(start + GATHER_CHUNK).min(n_groups)];
+            let mut no_slots: Vec<&mut [Entry]> = Vec::new();
+            let chunk_slots = match slot_chunks.next() {
+                Some(c) => c,
+                None => {
+                    no_slots.resize_with(groups.len(), Default::default);
+                    &mut no_slots[..]
+                }
+            };
+            let res: Vec<Gathered> = groups
                 .par_iter()
-                .map_init(Vec::new, |lights: &mut Vec<(Deposit, f64)>, &(r, a, b)| {
-                    // The deposit and light of each link into a subdivided surface receiver.
-                    lights.clear();
-                    let re = &el.elems[r as usize];
-                    let rho = re.rho.as_dvec3();
-                    let mut cells: Cells = [Cell::default(); 64];
-                    let mut g = Gathered {
-                        recv: r,
-                        ..Default::default()
-                    };
-                    for l in &links[a as usize..b as usize] {
-                        let contrib = set.gather(l, el);
-                        let se = &el.elems[l.src as usize];
-                        let open = set.open_members(l);
-                        if !open.is_empty() {
-                            g.open
-                                .extend(open.iter().map(|&(m, f)| (m, contrib * f as f64)));
-                        } else if re.kind == Kind::Cluster {
-                            let d = (se.centroid - re.centroid).normalize_or_zero();
-                            g.entries.push(Entry {
-                                d,
-                                sc: se.centroid,
-                                sn: se.facing_normal(),
-                                h: contrib,
-                                k: l.k,
-                            });
-                        } else {
-                            if re.num_children > 0 {
-                                lights.push((l.deposit, contrib.element_sum()));
-                            }
-                            if l.deposit.mixed() {
-                                g.mixed += oracle::value(ok, 1.0, contrib, rho);
-                            }
-                            g.h += contrib;
-                            g.k_sum += l.k as f64;
-                            if se.kind == Kind::Cluster {
-                                g.h_cluster += contrib.element_sum();
+                .zip(chunk_slots.par_iter_mut())
+                .map_init(
+                    Vec::new,
+                    |lights: &mut Vec<(Deposit, f64)>, (&(r, a, b), slot)| {
+                        // The deposit and light of each link into a subdivided surface receiver.
+                        lights.clear();
+                        let re = &el.elems[r as usize];
+                        let rho = re.rho.as_dvec3();
+                        let mut cells: Cells = [Cell::default(); 64];
+                        let mut g = Gathered {
+                            recv: r,
+                            ..Default::default()
+                        };
+                        let mut slot = slot.iter_mut();
+                        for l in &links[a as usize..b as usize] {
+                            let contrib = set.gather(l, el);
+                            let open = set.open_members(l);
+                            if !open.is_empty() {
+                                g.open
+                                    .extend(open.iter().map(|&(m, f)| (m, contrib * f as f64)));
+                            } else if re.kind == Kind::Cluster && update {
+                                slot.next().expect("an entry per link").h = contrib;
+                            } else if re.kind == Kind::Cluster {
+                                let se = &el.elems[l.src as usize];
+                                let d = (se.centroid - re.centroid).normalize_or_zero();
+                                g.entries.push(Entry {
+                                    d,
+                                    sc: se.centroid,
+                                    sn: se.facing_normal(),
+                                    h: contrib,
+                                    k: l.k,
+                                });
+                            } else {
+                                if re.num_children > 0 {
+                                    lights.push((l.deposit, contrib.element_sum()));
+                                }
+                                if l.deposit.mixed() {
+                                    g.mixed += oracle::value(ok, 1.0, contrib, rho);
+                                }
+                                g.h += contrib;
+                                g.k_sum += l.k as f64;
+                                if el.elems[l.src as usize].kind == Kind::Cluster {
+                                    g.h_cluster += contrib.element_sum();
+                                }
                             }
                         }
-                    }
-                    if re.kind == Kind::Surface && re.num_children > 0 {
-                        add_links(&mut cells, lights);
-                        let h = std::mem::take(&mut g.h);
-                        g.h = shape(el, covers, r, &cells, h, &mut g.deposits);
-                    }
-                    g
-                })
+                        if re.kind == Kind::Surface && re.num_children > 0 {
+                            add_links(&mut cells, lights);
+                            let h = std::mem::take(&mut g.h);
+                            g.h = shape(el, covers, r, &cells, h, &mut g.deposits);
+                        }
+                        g
+                    },
+                )
                 .collect();
             for g in res {
                 let id = g.recv as usize;
@@ -178,9 +216,11 @@ impl Solver<'_> {
                     self.dep_ranges[id] = (s, self.deposits.len() as u32);
                 }
                 if self.el.elems[id].kind == Kind::Cluster {
-                    let s = self.entries.len() as u32;
-                    self.entries.extend_from_slice(&g.entries);
-                    self.cl_ranges[id] = (s, self.entries.len() as u32);
+                    if !update {
+                        let s = built.len() as u32;
+                        built.extend_from_slice(&g.entries);
+                        self.cl_ranges[id] = (s, built.len() as u32);
+                    }
                 } else {
                     self.el.h[id] += g.h;
                     self.h_cluster[id] = g.h_cluster;
@@ -191,6 +231,8 @@ impl Solver<'_> {
                 }
             }
         }
+        drop(slots);
+        self.entries = if update { entries } else { built };
         self.note_peak();
     }
 }

@@ -31,9 +31,9 @@ use super::budget::Growth;
 use super::gather::Entry;
 use super::{Solver, STRADDLES, STRADDLE_DECIDED};
 use crate::config::Oracle;
-use crate::element::Kind;
+use crate::element::{Elements, Kind};
 use crate::formfactor::KernelCtx;
-use crate::link::{Deposit, Link, LinkSet, Sample, NO_SAMPLES};
+use crate::link::{Deposit, Kept, Link, LinkSet, Sample, NO_SAMPLES};
 use crate::oracle::{self, Action};
 use glam::DVec3;
 use hirad_core::{Error, Result};
@@ -47,6 +47,88 @@ const REFINE_CHUNK: usize = 1 << 18;
 /// cast, and what a kept link records of its samples.
 pub(super) type Decided = (Action, Link, u64, Option<Box<Recorded>>);
 
+/// A decision with what the chunk's serial bookkeeping needs of the link's ends, read beside
+/// the decision (in parallel) rather than from scattered elements after it.
+pub(super) struct Decision {
+    action: Action,
+    /// The end split is a surface leaf: it is subdivided before its links come down.
+    split_leaf: bool,
+    link: Link,
+    rays: u32,
+    /// A split: the links it makes. Kept: the gather bytes it holds (see [`Solver::gather`]).
+    grow: u32,
+    rec: Option<Box<Recorded>>,
+}
+
+/// What [`file`] kept: links, the gather bytes they will hold, and their samples.
+#[derive(Default)]
+struct Filed {
+    links: usize,
+    gather_bytes: usize,
+    samples: usize,
+}
+
+/// Files settled decisions: kept links go to `keep` (their samples to `samples`, their open
+/// surfaces to `open`), the children of split ones to `next`.
+fn file(
+    el: &Elements,
+    decided: Vec<Decision>,
+    keep: &mut impl FnMut(Link),
+    (next, samples, open): (&mut Vec<Link>, &mut Vec<Sample>, &mut Vec<Sample>),
+) -> Filed {
+    let mut f = Filed::default();
+    next.reserve(
+        decided
+            .iter()
+            .filter(|d| d.action != Action::Keep)
+            .map(|d| d.grow as usize)
+            .sum(),
+    );
+    for d in decided {
+        let mut l = d.link;
+        match d.action {
+            Action::Keep => {
+                f.links += 1;
+                f.gather_bytes += d.grow as usize;
+                if let Some(m) = d.rec {
+                    if !m.samples.is_empty() {
+                        f.samples += m.samples.len();
+                        l.samples = samples.len() as u32;
+                        samples.extend_from_slice(&m.samples);
+                    }
+                    if !m.open.is_empty() {
+                        f.samples += m.open.len() + 1;
+                        l.open_members = open.len() as u32;
+                        open.push((m.open.len() as u32, 0.0));
+                        open.extend_from_slice(&m.open);
+                    }
+                }
+                keep(l)
+            }
+            Action::Drop => {}
+            Action::SplitRecv => {
+                for c in el.children(l.recv) {
+                    next.push(Link::new(c, l.src));
+                }
+            }
+            Action::SplitSrc => {
+                for c in el.children(l.src) {
+                    next.push(Link::new(l.recv, c));
+                }
+            }
+            Action::SplitBoth => {
+                let kids: Vec<u32> = el.children(l.recv).collect();
+                for &a in &kids {
+                    for &b in &kids {
+                        next.push(Link::new(a, b));
+                    }
+                }
+            }
+        }
+    }
+    f
+}
+
 /// The samples a kept link records: from a directional cluster source, each sample's surface
 /// and share ([`Link::samples`]); into a cluster whose rays disagreed, the surfaces that
 /// saw the source ([`Link::open_members`]).
@@ -59,9 +141,8 @@ impl Solver<'_> {
     /// One refinement sweep over every link (the root self-link on the first iteration).
     pub(super) fn refine(&mut self, first: bool, cancel: &AtomicBool) -> Result<()> {
         let per_link = self.cfg.shadow_rays.max(1);
-        let (mut frontier, mut samples, mut open): (Vec<Link>, Vec<Sample>, Vec<Sample>) = if first
-        {
-            (vec![Link::new(0, 0)], Vec::new(), Vec::new())
+        let (links, mut samples, mut open) = if first {
+            (Vec::new(), Vec::new(), Vec::new())
         } else {
             let set = std::mem::take(&mut self.set);
             (set.links, set.samples, set.open_members)
@@ -72,36 +153,67 @@ impl Solver<'_> {
         self.kept_links = 0;
         self.kept_gather_bytes = 0;
         self.kept_samples = 0;
-        let mut done: Vec<Link> = Vec::with_capacity(frontier.len());
+        // The first pass decides the links of the last sweep, a chunk at a time, and writes
+        // the ones it keeps over those decided (never more than were decided): in their
+        // order, and with no second copy of the links.
+        let mut next: Vec<Link> = Vec::new();
+        let mut links = links;
+        let (mut read, mut write) = (0, 0);
+        while read < links.len() {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            let end = (read + REFINE_CHUNK).min(links.len());
+            let chunk = &links[read..end];
+            let decided = self.decide_chunk(chunk, !self.budget_hit);
+            let sizes = (write, next.len(), samples.len() + open.len());
+            let decided = self.settle(chunk, decided, sizes, links.len() - end)?;
+            let mut keep = |l: Link| {
+                links[write] = l;
+                write += 1;
+            };
+            let filed = file(
+                &self.el,
+                decided,
+                &mut keep,
+                (&mut next, &mut samples, &mut open),
+            );
+            self.count_filed(filed);
+            read = end;
+        }
+        links.truncate(write);
+        let mut done = Kept::sorted(links);
+        let mut frontier = if first { vec![Link::new(0, 0)] } else { next };
         while !frontier.is_empty() {
-            // One pass over the frontier, a chunk at a time: the decisions of a chunk are all
-            // that is held beside the links, and the frontier's memory is given back as it is
-            // consumed (reversed, so that chunks come off its end in order).
+            // Each later pass decides the children of the links split, a chunk at a time:
+            // the decisions of a chunk are all that is held beside the links, and the
+            // frontier's memory is given back as it is consumed (reversed, so that chunks
+            // come off its end in order).
             frontier.reverse();
             let mut next: Vec<Link> = Vec::new();
             while !frontier.is_empty() {
+                if cancel.load(Ordering::Relaxed) {
+                    return Err(Error::Interrupted);
+                }
                 let mut chunk =
                     frontier.split_off(frontier.len() - frontier.len().min(REFINE_CHUNK));
                 frontier.shrink_to_fit();
                 chunk.reverse();
-                self.refine_chunk(
-                    &chunk,
-                    (&mut done, &mut next, &mut samples, &mut open),
-                    frontier.len(),
-                    cancel,
-                )?;
+                let decided = self.decide_chunk(&chunk, !self.budget_hit);
+                let sizes = (done.len(), next.len(), samples.len() + open.len());
+                let decided = self.settle(&chunk, decided, sizes, frontier.len())?;
+                let mut keep = |l: Link| done.push(l);
+                let filed = file(
+                    &self.el,
+                    decided,
+                    &mut keep,
+                    (&mut next, &mut samples, &mut open),
+                );
+                self.count_filed(filed);
             }
             frontier = next;
         }
-        // Under a memory budget, the links the sort sets aside stay within what a chunk's
-        // decisions held (counted in the budget's projection, `Solver::projected`).
-        let max_late = match self.cfg.max_memory {
-            Some(_) => {
-                REFINE_CHUNK * (size_of::<Link>() + size_of::<Decided>()) / size_of::<Link>()
-            }
-            None => usize::MAX,
-        };
-        self.set = LinkSet::from_links(done, (&samples, &open), per_link, max_late);
+        self.set = LinkSet::from_links(done, (samples, open), per_link);
         for f in self.straddle.iter_mut() {
             if *f & STRADDLES != 0 {
                 *f |= STRADDLE_DECIDED;
@@ -111,183 +223,153 @@ impl Solver<'_> {
         Ok(())
     }
 
-    /// Decide the links of `chunk`: kept links go to `done` (their samples to `samples`, their
-    /// open surfaces to `open`), the children of split ones to `next`; `rest` links of the
-    /// pass are still to come. When the growth would pass the memory budget, the chunk is
-    /// decided again without refinement.
-    pub(super) fn refine_chunk(
+    /// The decisions on the links of `chunk` (refinement allowed or not).
+    fn decide_chunk(&self, chunk: &[Link], allow: bool) -> Vec<Decision> {
+        let ctx = self.ctx();
+        chunk
+            .par_iter()
+            .map(|l| self.decision(self.decide(&ctx, l, allow, self.cfg.refine)))
+            .collect()
+    }
+
+    /// Settles the decisions on `chunk`: counts their growth against the memory budget (past
+    /// it, the chunk is decided again without refinement), subdivides the surfaces split and
+    /// marks the children of straddling receivers. `sizes` are those of the lists [`file`]
+    /// fills: the links kept, the links to decide in the next pass and the samples; `rest`
+    /// links of the pass are still to come. Returns the decisions, to file.
+    fn settle(
         &mut self,
         chunk: &[Link],
-        (done, next, samples, open): (
-            &mut Vec<Link>,
-            &mut Vec<Link>,
-            &mut Vec<Sample>,
-            &mut Vec<Sample>,
-        ),
+        mut decided: Vec<Decision>,
+        (kept, next, samples): (usize, usize, usize),
         rest: usize,
-        cancel: &AtomicBool,
-    ) -> Result<()> {
-        let oracle_kind = self.cfg.refine;
-        loop {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(Error::Interrupted);
-            }
-            let allow = !self.budget_hit;
-            let decided: Vec<Decided> = {
-                let ctx = self.ctx();
-                let this = &*self;
-                chunk
-                    .par_iter()
-                    .map(|l| this.decide(&ctx, l, allow, oracle_kind))
-                    .collect()
-            };
+    ) -> Result<Vec<Decision>> {
+        let held = kept + rest + chunk.len() + next;
+        let (new_links, to_split) = loop {
             // Growth of this chunk.
             let mut new_links = 0usize;
             let mut to_split: Vec<u32> = Vec::new();
-            for (a, l, _, _) in &decided {
-                let nk = |id: u32| -> usize {
-                    let e = &self.el.elems[id as usize];
-                    if e.kind == Kind::Surface {
-                        4
-                    } else {
-                        e.num_children as usize
+            for d in &decided {
+                match d.action {
+                    Action::SplitRecv | Action::SplitSrc | Action::SplitBoth => {
+                        new_links += d.grow as usize
                     }
-                };
-                match a {
-                    Action::SplitRecv => {
-                        new_links += nk(l.recv);
-                        to_split.push(l.recv);
-                    }
-                    Action::SplitSrc => {
-                        new_links += nk(l.src);
-                        to_split.push(l.src);
-                    }
-                    Action::SplitBoth => new_links += nk(l.recv) * nk(l.recv),
                     _ => {}
                 }
+                if d.split_leaf {
+                    to_split.push(match d.action {
+                        Action::SplitRecv => d.link.recv,
+                        _ => d.link.src,
+                    });
+                }
             }
-            to_split.retain(|&id| {
-                let e = &self.el.elems[id as usize];
-                e.kind == Kind::Surface && e.num_children == 0
-            });
             to_split.sort_unstable();
             to_split.dedup();
             let projected = self.projected(&Growth {
-                links: done.len() + rest + chunk.len() + next.len() + new_links,
+                links: held + new_links,
                 elements: to_split.len() * 4,
-                samples: samples.len() + open.len(),
-                pending: rest + chunk.len() + next.len() + new_links,
+                samples,
+                pending: rest + chunk.len() + next + new_links,
                 // A later pass decides the first chunk of all the links.
-                chunk: REFINE_CHUNK.min(done.len() + rest + chunk.len() + next.len() + new_links),
+                chunk: REFINE_CHUNK.min(held + new_links),
             });
-            for (_, _, r, _) in &decided {
-                self.rays += r;
-            }
-            if let Some(budget) = self.cfg.max_memory {
-                if new_links > 0 && projected > budget {
+            match self.cfg.max_memory {
+                Some(budget) if new_links > 0 && projected > budget => {
                     self.budget_hit = true;
                     let msg = format!(
                         "memory budget {:.3} GB reached ({} links, {} elements): refinement \
                          stopped, the solution is coarser than eps = {:.3e} asks for",
                         budget as f64 / 1e9,
-                        done.len() + rest + chunk.len() + next.len(),
+                        held,
                         self.el.len(),
                         self.eps
                     );
                     tracing::warn!("{msg}");
                     self.stats.warnings.push(msg);
                     // Decide this chunk again without refinement: every link is kept.
-                    continue;
+                    self.rays += decided.iter().map(|d| d.rays as u64).sum::<u64>();
+                    decided = self.decide_chunk(chunk, false);
                 }
+                _ => break (new_links, to_split),
             }
-            for &id in &to_split {
-                self.el.subdivide(id);
+        };
+        self.rays += decided.iter().map(|d| d.rays as u64).sum::<u64>();
+        for &id in &to_split {
+            self.el.subdivide(id);
+        }
+        if !to_split.is_empty() {
+            let n_before = self.h_cluster.len();
+            self.h_cluster.resize(self.el.len(), 0.0);
+            self.k_sum.resize(self.el.len(), 0.0);
+            self.straddle.resize(self.el.len(), 0);
+            if self.has_sun_sky {
+                self.compute_direct(n_before as u32, self.el.len() as u32);
             }
-            if !to_split.is_empty() {
-                let n_before = self.h_cluster.len();
-                self.h_cluster.resize(self.el.len(), 0.0);
-                self.k_sum.resize(self.el.len(), 0.0);
-                self.straddle.resize(self.el.len(), 0);
-                if self.has_sun_sky {
-                    self.compute_direct(n_before as u32, self.el.len() as u32);
-                }
-            }
-            // Children of a straddling receiver split here straddle until their own gather
-            // says: new ones, and those it had, whose own links were kept on other grounds
-            // (marked decided: only the links coming down are decided on their rays).
-            for (a, l, _, _) in &decided {
-                let id = l.recv as usize;
-                if *a == Action::SplitRecv && self.straddle[id] & STRADDLES != 0 {
-                    let e = &self.el.elems[id];
-                    if e.kind == Kind::Surface {
-                        let first = e.first_child as usize;
-                        for f in &mut self.straddle[first..first + 4] {
-                            if *f & STRADDLES == 0 {
-                                *f |= STRADDLES | STRADDLE_DECIDED;
-                            }
-                        }
-                    }
-                }
-            }
-            next.reserve(new_links);
-            for (a, mut l, _, m) in decided {
-                match a {
-                    Action::Keep => {
-                        self.kept_links += 1;
-                        if self.el.elems[l.recv as usize].kind == Kind::Cluster {
-                            self.kept_gather_bytes += std::mem::size_of::<Entry>();
-                        } else {
-                            // A shaped receiver has at most one part per 4 of its links'
-                            // samples (`gather::shape_depth`).
-                            self.kept_gather_bytes +=
-                                std::mem::size_of::<(Deposit, DVec3)>() * l.deposit.points() / 4;
-                        }
-                        if let Some(m) = m {
-                            if !m.samples.is_empty() {
-                                self.kept_samples += m.samples.len();
-                                l.samples = samples.len() as u32;
-                                samples.extend_from_slice(&m.samples);
-                            }
-                            if !m.open.is_empty() {
-                                self.kept_samples += m.open.len() + 1;
-                                l.open_members = open.len() as u32;
-                                open.push((m.open.len() as u32, 0.0));
-                                open.extend_from_slice(&m.open);
-                            }
-                        }
-                        done.push(l)
-                    }
-                    Action::Drop => {}
-                    Action::SplitRecv => {
-                        for c in self.el.children(l.recv) {
-                            next.push(Link::new(c, l.src));
-                        }
-                    }
-                    Action::SplitSrc => {
-                        for c in self.el.children(l.src) {
-                            next.push(Link::new(l.recv, c));
-                        }
-                    }
-                    Action::SplitBoth => {
-                        let kids: Vec<u32> = self.el.children(l.recv).collect();
-                        for &a in &kids {
-                            for &b in &kids {
-                                next.push(Link::new(a, b));
-                            }
+        }
+        // Children of a straddling receiver split here straddle until their own gather
+        // says: new ones, and those it had, whose own links were kept on other grounds
+        // (marked decided: only the links coming down are decided on their rays).
+        for d in &decided {
+            let id = d.link.recv as usize;
+            if d.action == Action::SplitRecv && self.straddle[id] & STRADDLES != 0 {
+                let e = &self.el.elems[id];
+                if e.kind == Kind::Surface {
+                    let first = e.first_child as usize;
+                    for f in &mut self.straddle[first..first + 4] {
+                        if *f & STRADDLES == 0 {
+                            *f |= STRADDLES | STRADDLE_DECIDED;
                         }
                     }
                 }
             }
-            // The peak counts the links held now: decided, kept, to come and new, by length
-            // (the capacity reserved ahead of them is not touched, so not resident).
-            let held = done.len() + rest + chunk.len() + next.len();
-            let m = self.fixed
-                + self.memory_now(held)
-                + (chunk.len() * std::mem::size_of::<Decided>()
-                    + (samples.len() + open.len()) * std::mem::size_of::<Sample>())
-                    as u64;
-            self.peak = self.peak.max(m);
-            return Ok(());
+        }
+        // The peak counts the links held once these are filed: decided, kept, to come and new,
+        // by length (the capacity reserved ahead of them is not touched, so not resident).
+        let m = self.fixed
+            + self.memory_now(held + new_links)
+            + (chunk.len() * std::mem::size_of::<Decision>()
+                + samples * std::mem::size_of::<Sample>()) as u64;
+        self.peak = self.peak.max(m);
+        Ok(decided)
+    }
+
+    /// Adds what [`file`] kept to the counts the memory budget projects from.
+    fn count_filed(&mut self, f: Filed) {
+        self.kept_links += f.links;
+        self.kept_gather_bytes += f.gather_bytes;
+        self.kept_samples += f.samples;
+    }
+
+    /// `d` with the growth it brings (see [`Decision`]).
+    fn decision(&self, (action, link, rays, rec): Decided) -> Decision {
+        let elem = |id: u32| &self.el.elems[id as usize];
+        let nk = |id: u32| match elem(id).kind {
+            Kind::Surface => 4,
+            Kind::Cluster => elem(id).num_children,
+        };
+        let leaf = |id: u32| elem(id).kind == Kind::Surface && elem(id).num_children == 0;
+        let (grow, split_leaf) = match action {
+            Action::SplitRecv => (nk(link.recv), leaf(link.recv)),
+            Action::SplitSrc => (nk(link.src), leaf(link.src)),
+            Action::SplitBoth => (nk(link.recv) * nk(link.recv), false),
+            Action::Keep if elem(link.recv).kind == Kind::Cluster => {
+                (std::mem::size_of::<Entry>() as u32, false)
+            }
+            // A shaped receiver has at most one part per 4 of its links' samples
+            // (`gather::shape_depth`).
+            Action::Keep => (
+                (std::mem::size_of::<(Deposit, DVec3)>() * link.deposit.points() / 4) as u32,
+                false,
+            ),
+            Action::Drop => (0, false),
+        };
+        Decision {
+            action,
+            split_leaf,
+            link,
+            rays: rays as u32,
+            grow,
+            rec,
         }
     }
 
