@@ -1,7 +1,7 @@
 //! The memory budget (`--max-memory`, [`crate::memory`]): the bytes the solver holds, counted
 //! from the capacities of its arrays on top of the fixed part counted at the start, and their
 //! peak. Refinement checks each chunk's projection of the solve's later peaks against the
-//! budget ([`Solver::refine_chunk`]): refinement itself (the links held and the next chunk's
+//! budget ([`Solver::settle`]): refinement itself (the links held and the next chunk's
 //! decisions), gather and push-pull (the final links with their entries, deposits and
 //! per-root results), and the output mesh written from the solution.
 

@@ -56,7 +56,7 @@ struct Gathered {
 pub(super) struct Entry {
     /// Unit direction from the cluster's centroid to the source's.
     pub(super) d: Vec3,
-    /// Source centroid and [`Element::facing_normal`] (for [`facing_weight`]).
+    /// Source centroid and [`Element::facing_normal`] (for [`facing_weight`](crate::cluster_model::facing_weight)).
     ///
     /// [`Element::facing_normal`]: crate::element::Element::facing_normal
     pub(super) sc: Vec3,

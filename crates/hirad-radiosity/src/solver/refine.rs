@@ -40,7 +40,7 @@ use hirad_core::{Error, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// Links decided at a time in a refinement pass (see [`Solver::refine_chunk`]).
+/// Links decided at a time in a refinement pass (see [`Solver::settle`]).
 const REFINE_CHUNK: usize = 1 << 18;
 
 /// What refinement decides for a link: the action, the link (evaluated when kept), the rays
@@ -60,7 +60,11 @@ pub(super) struct Decision {
     rec: Option<Box<Recorded>>,
 }
 
-/// What [`file`] kept: links, the gather bytes they will hold, and their samples.
+/// The lists filing fills besides the links kept: the links of the next pass, the samples and
+/// the open surfaces' runs.
+type Lists<'a> = (&'a mut Vec<Link>, &'a mut Vec<Sample>, &'a mut Vec<Sample>);
+
+/// What [`file()`] kept: links, the gather bytes they will hold, and their samples.
 #[derive(Default)]
 struct Filed {
     links: usize,
@@ -74,7 +78,7 @@ fn file(
     el: &Elements,
     decided: Vec<Decision>,
     keep: &mut impl FnMut(Link),
-    (next, samples, open): (&mut Vec<Link>, &mut Vec<Sample>, &mut Vec<Sample>),
+    (next, samples, open): Lists,
 ) -> Filed {
     let mut f = Filed::default();
     next.reserve(
@@ -172,13 +176,7 @@ impl Solver<'_> {
                 links[write] = l;
                 write += 1;
             };
-            let filed = file(
-                &self.el,
-                decided,
-                &mut keep,
-                (&mut next, &mut samples, &mut open),
-            );
-            self.count_filed(filed);
+            self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
             read = end;
         }
         links.truncate(write);
@@ -203,13 +201,7 @@ impl Solver<'_> {
                 let sizes = (done.len(), next.len(), samples.len() + open.len());
                 let decided = self.settle(&chunk, decided, sizes, frontier.len())?;
                 let mut keep = |l: Link| done.push(l);
-                let filed = file(
-                    &self.el,
-                    decided,
-                    &mut keep,
-                    (&mut next, &mut samples, &mut open),
-                );
-                self.count_filed(filed);
+                self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
             }
             frontier = next;
         }
@@ -234,7 +226,7 @@ impl Solver<'_> {
 
     /// Settles the decisions on `chunk`: counts their growth against the memory budget (past
     /// it, the chunk is decided again without refinement), subdivides the surfaces split and
-    /// marks the children of straddling receivers. `sizes` are those of the lists [`file`]
+    /// marks the children of straddling receivers. `sizes` are those of the lists [`file()`]
     /// fills: the links kept, the links to decide in the next pass and the samples; `rest`
     /// links of the pass are still to come. Returns the decisions, to file.
     fn settle(
@@ -333,8 +325,10 @@ impl Solver<'_> {
         Ok(decided)
     }
 
-    /// Adds what [`file`] kept to the counts the memory budget projects from.
-    fn count_filed(&mut self, f: Filed) {
+    /// Files settled decisions ([`file()`]) and adds what they keep to the counts the memory
+    /// budget projects from.
+    fn file(&mut self, decided: Vec<Decision>, keep: &mut impl FnMut(Link), lists: Lists) {
+        let f = file(&self.el, decided, keep, lists);
         self.kept_links += f.links;
         self.kept_gather_bytes += f.gather_bytes;
         self.kept_samples += f.samples;
