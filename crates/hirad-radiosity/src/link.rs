@@ -345,6 +345,11 @@ impl Kept {
         }
     }
 
+    /// Number of links kept out of order (merged in by [`LinkSet::from_links`]).
+    pub fn late(&self) -> usize {
+        self.late.len()
+    }
+
     /// Number of links kept.
     pub fn len(&self) -> usize {
         self.links.len() + self.late.len()
@@ -417,8 +422,8 @@ fn compact(
 }
 
 /// Merges `late`, sorted, into `links`, sorted, from the back. `late` gives its memory back
-/// as it is consumed, so the two hold little more than the merged links at any time (a copy
-/// set aside beside them would raise the solve's peak memory).
+/// as it is consumed, so the merge holds at most `late`'s size beyond the merged links, and
+/// less the more of the late links lie at the top.
 fn merge_late(links: &mut Vec<Link>, mut late: Vec<Link>) {
     /// Links consumed from `late` between two returns of its memory.
     const RELEASE: usize = 1 << 16;
@@ -427,7 +432,7 @@ fn merge_late(links: &mut Vec<Link>, mut late: Vec<Link>) {
     let (mut i, mut j) = (links.len(), late.len());
     let mut released = j;
     let base = links.as_mut_ptr();
-    // Invariant: i + j = k, the number of positions not yet written.
+    // Positions `i + j..n` hold the merged tail; `links[..i]` and `late[..j]` remain.
     while j > 0 {
         let k = i + j - 1;
         // SAFETY: `k < n ≤ capacity`. Positions below `i` hold the links not yet merged,
@@ -464,11 +469,12 @@ mod tests {
         let mut r = |n: u64| (rng.next_u64() % n) as u32;
         // A sorted set with new links after it, some of them late, and a shuffled one; every
         // link that carries samples or open surfaces points at its own, tagged by its key.
-        let mut sorted: Vec<Link> = (0..3000).map(|_| Link::new(r(500), r(500))).collect();
+        // More links than one block of the parallel compaction.
+        let mut sorted: Vec<Link> = (0..40_000).map(|_| Link::new(r(5000), r(5000))).collect();
         sorted.sort_by_key(|l| (l.recv, l.src));
         sorted.dedup_by_key(|l| (l.recv, l.src));
-        let mut extra: Vec<Link> = (0..300).map(|_| Link::new(500 + r(50), r(500))).collect();
-        extra.extend((0..200).map(|_| Link::new(r(500), 500 + r(50))));
+        let mut extra: Vec<Link> = (0..300).map(|_| Link::new(5000 + r(50), r(5000))).collect();
+        extra.extend((0..200).map(|_| Link::new(r(5000), 5000 + r(50))));
         extra.sort_by_key(|l| (l.recv, l.src));
         extra.dedup_by_key(|l| (l.recv, l.src));
         let mut shuffled: Vec<Link> = sorted.iter().chain(&extra).copied().collect();
@@ -476,7 +482,7 @@ mod tests {
             shuffled.swap(i, r(i as u64 + 1) as usize);
         }
         let per_link = 3;
-        let tag = |l: &Link| (l.recv * 1000 + l.src) as f32;
+        let tag = |l: &Link| ((l.recv * 10_007 + l.src) % (1 << 24)) as f32;
         for links in [
             sorted.iter().chain(&extra).copied().collect::<Vec<_>>(),
             sorted.clone(),

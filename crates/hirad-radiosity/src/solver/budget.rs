@@ -37,6 +37,10 @@ pub(super) struct Growth {
     pub pending: usize,
     /// Links a chunk decides at a time.
     pub chunk: usize,
+    /// Link slots held beside the links while refining: those a first pass decided in place
+    /// and did not keep, and the room the merge of the late links takes
+    /// ([`crate::link::LinkSet::from_links`]).
+    pub room: usize,
 }
 
 impl Solver<'_> {
@@ -86,7 +90,8 @@ impl Solver<'_> {
         let per_link = size_of::<Link>()
             + size_of::<Decision>()
             + self.cfg.shadow_rays as usize * size_of::<Sample>();
-        let refine = links + 2 * samples + (g.chunk * per_link) as u64;
+        let refine =
+            links + (g.room * size_of::<Link>()) as u64 + 2 * samples + (g.chunk * per_link) as u64;
         let gather = if self.kept_links >= 1000 {
             self.kept_gather_bytes as f64 / self.kept_links as f64
         } else {
@@ -121,6 +126,7 @@ impl Solver<'_> {
             samples: 0,
             pending: 1,
             chunk: 1,
+            room: 0,
         });
         if need <= b {
             return Ok(());

@@ -56,13 +56,22 @@ pub(super) struct Decision {
     link: Link,
     rays: u32,
     /// A split: the links it makes. Kept: the gather bytes it holds (see [`Solver::gather`]).
-    grow: u32,
+    grow: u64,
     rec: Option<Box<Recorded>>,
 }
 
 /// The lists filing fills besides the links kept: the links of the next pass, the samples and
 /// the open surfaces' runs.
 type Lists<'a> = (&'a mut Vec<Link>, &'a mut Vec<Sample>, &'a mut Vec<Sample>);
+
+/// What refinement holds while it settles a chunk: the links kept, the link slots held
+/// beside them ([`Growth::room`]), the links to decide in the next pass, and the samples.
+struct Sizes {
+    kept: usize,
+    room: usize,
+    next: usize,
+    samples: usize,
+}
 
 /// What [`file()`] kept: links, the gather bytes they will hold, and their samples.
 #[derive(Default)]
@@ -170,7 +179,12 @@ impl Solver<'_> {
             let end = (read + REFINE_CHUNK).min(links.len());
             let chunk = &links[read..end];
             let decided = self.decide_chunk(chunk, !self.budget_hit);
-            let sizes = (write, next.len(), samples.len() + open.len());
+            let sizes = Sizes {
+                kept: write,
+                room: read - write,
+                next: next.len(),
+                samples: samples.len() + open.len(),
+            };
             let decided = self.settle(chunk, decided, sizes, links.len() - end)?;
             let mut keep = |l: Link| {
                 links[write] = l;
@@ -179,7 +193,9 @@ impl Solver<'_> {
             self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
             read = end;
         }
+        // The slots of the links not kept are given back.
         links.truncate(write);
+        links.shrink_to_fit();
         let mut done = Kept::sorted(links);
         let mut frontier = if first { vec![Link::new(0, 0)] } else { next };
         while !frontier.is_empty() {
@@ -198,7 +214,12 @@ impl Solver<'_> {
                 frontier.shrink_to_fit();
                 chunk.reverse();
                 let decided = self.decide_chunk(&chunk, !self.budget_hit);
-                let sizes = (done.len(), next.len(), samples.len() + open.len());
+                let sizes = Sizes {
+                    kept: done.len(),
+                    room: done.late(),
+                    next: next.len(),
+                    samples: samples.len() + open.len(),
+                };
                 let decided = self.settle(&chunk, decided, sizes, frontier.len())?;
                 let mut keep = |l: Link| done.push(l);
                 self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
@@ -226,14 +247,18 @@ impl Solver<'_> {
 
     /// Settles the decisions on `chunk`: counts their growth against the memory budget (past
     /// it, the chunk is decided again without refinement), subdivides the surfaces split and
-    /// marks the children of straddling receivers. `sizes` are those of the lists [`file()`]
-    /// fills: the links kept, the links to decide in the next pass and the samples; `rest`
-    /// links of the pass are still to come. Returns the decisions, to file.
+    /// marks the children of straddling receivers. `sizes` are what is held now (see
+    /// [`Sizes`]); `rest` links of the pass are still to come. Returns the decisions, to file.
     fn settle(
         &mut self,
         chunk: &[Link],
         mut decided: Vec<Decision>,
-        (kept, next, samples): (usize, usize, usize),
+        Sizes {
+            kept,
+            room,
+            next,
+            samples,
+        }: Sizes,
         rest: usize,
     ) -> Result<Vec<Decision>> {
         let held = kept + rest + chunk.len() + next;
@@ -264,6 +289,7 @@ impl Solver<'_> {
                 pending: rest + chunk.len() + next + new_links,
                 // A later pass decides the first chunk of all the links.
                 chunk: REFINE_CHUNK.min(held + new_links),
+                room,
             });
             match self.cfg.max_memory {
                 Some(budget) if new_links > 0 && projected > budget => {
@@ -316,9 +342,10 @@ impl Solver<'_> {
             }
         }
         // The peak counts the links held once these are filed: decided, kept, to come and new,
-        // by length (the capacity reserved ahead of them is not touched, so not resident).
+        // by length (the capacity reserved ahead of them is not touched, so not resident), and
+        // the slots held beside them.
         let m = self.fixed
-            + self.memory_now(held + new_links)
+            + self.memory_now(held + new_links + room)
             + (chunk.len() * std::mem::size_of::<Decision>()
                 + samples * std::mem::size_of::<Sample>()) as u64;
         self.peak = self.peak.max(m);
@@ -339,7 +366,7 @@ impl Solver<'_> {
         let elem = |id: u32| &self.el.elems[id as usize];
         let nk = |id: u32| match elem(id).kind {
             Kind::Surface => 4,
-            Kind::Cluster => elem(id).num_children,
+            Kind::Cluster => elem(id).num_children as u64,
         };
         let leaf = |id: u32| elem(id).kind == Kind::Surface && elem(id).num_children == 0;
         let (grow, split_leaf) = match action {
@@ -347,12 +374,12 @@ impl Solver<'_> {
             Action::SplitSrc => (nk(link.src), leaf(link.src)),
             Action::SplitBoth => (nk(link.recv) * nk(link.recv), false),
             Action::Keep if elem(link.recv).kind == Kind::Cluster => {
-                (std::mem::size_of::<Entry>() as u32, false)
+                (std::mem::size_of::<Entry>() as u64, false)
             }
             // A shaped receiver has at most one part per 4 of its links' samples
             // (`gather::shape_depth`).
             Action::Keep => (
-                (std::mem::size_of::<(Deposit, DVec3)>() * link.deposit.points() / 4) as u32,
+                (std::mem::size_of::<(Deposit, DVec3)>() * link.deposit.points() / 4) as u64,
                 false,
             ),
             Action::Drop => (0, false),
