@@ -82,21 +82,15 @@ struct Filed {
 }
 
 /// Files settled decisions: kept links go to `keep` (their samples to `samples`, their open
-/// surfaces to `open`), the children of split ones to `next`.
+/// surfaces to `open`), the `new_links` children of split ones to `next`.
 fn file(
     el: &Elements,
-    decided: Vec<Decision>,
+    (decided, new_links): (Vec<Decision>, usize),
     keep: &mut impl FnMut(Link),
     (next, samples, open): Lists,
 ) -> Filed {
     let mut f = Filed::default();
-    next.reserve(
-        decided
-            .iter()
-            .filter(|d| d.action != Action::Keep)
-            .map(|d| d.grow as usize)
-            .sum(),
-    );
+    next.reserve(new_links);
     for d in decided {
         let mut l = d.link;
         match d.action {
@@ -185,12 +179,12 @@ impl Solver<'_> {
                 next: next.len(),
                 samples: samples.len() + open.len(),
             };
-            let decided = self.settle(chunk, decided, sizes, links.len() - end)?;
+            let settled = self.settle(chunk, decided, sizes, links.len() - end)?;
             let mut keep = |l: Link| {
                 links[write] = l;
                 write += 1;
             };
-            self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
+            self.file(settled, &mut keep, (&mut next, &mut samples, &mut open));
             read = end;
         }
         // The slots of the links not kept are given back.
@@ -220,9 +214,9 @@ impl Solver<'_> {
                     next: next.len(),
                     samples: samples.len() + open.len(),
                 };
-                let decided = self.settle(&chunk, decided, sizes, frontier.len())?;
+                let settled = self.settle(&chunk, decided, sizes, frontier.len())?;
                 let mut keep = |l: Link| done.push(l);
-                self.file(decided, &mut keep, (&mut next, &mut samples, &mut open));
+                self.file(settled, &mut keep, (&mut next, &mut samples, &mut open));
             }
             frontier = next;
         }
@@ -248,7 +242,8 @@ impl Solver<'_> {
     /// Settles the decisions on `chunk`: counts their growth against the memory budget (past
     /// it, the chunk is decided again without refinement), subdivides the surfaces split and
     /// marks the children of straddling receivers. `sizes` are what is held now (see
-    /// [`Sizes`]); `rest` links of the pass are still to come. Returns the decisions, to file.
+    /// [`Sizes`]); `rest` links of the pass are still to come. Returns the decisions, to file,
+    /// and the links their splits make.
     fn settle(
         &mut self,
         chunk: &[Link],
@@ -260,7 +255,7 @@ impl Solver<'_> {
             samples,
         }: Sizes,
         rest: usize,
-    ) -> Result<Vec<Decision>> {
+    ) -> Result<(Vec<Decision>, usize)> {
         let held = kept + rest + chunk.len() + next;
         let (new_links, to_split) = loop {
             // Growth of this chunk.
@@ -349,13 +344,13 @@ impl Solver<'_> {
             + (chunk.len() * std::mem::size_of::<Decision>()
                 + samples * std::mem::size_of::<Sample>()) as u64;
         self.peak = self.peak.max(m);
-        Ok(decided)
+        Ok((decided, new_links))
     }
 
     /// Files settled decisions ([`file()`]) and adds what they keep to the counts the memory
     /// budget projects from.
-    fn file(&mut self, decided: Vec<Decision>, keep: &mut impl FnMut(Link), lists: Lists) {
-        let f = file(&self.el, decided, keep, lists);
+    fn file(&mut self, settled: (Vec<Decision>, usize), keep: &mut impl FnMut(Link), lists: Lists) {
+        let f = file(&self.el, settled, keep, lists);
         self.kept_links += f.links;
         self.kept_gather_bytes += f.gather_bytes;
         self.kept_samples += f.samples;
