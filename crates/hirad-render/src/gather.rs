@@ -7,7 +7,8 @@
 //! not counted twice); [`Gatherer`] gives the details. The solution is the mesh `solve` writes
 //! (`solution.glb`), matched to the scene's surfaces by [`SolutionLookup`]: a `.glb` and the
 //! scene are enough, nothing is solved again. Bright solution triangles are also sampled by area
-//! ([`GatherOptions::bright`]).
+//! ([`GatherOptions::bright`]), and gather hits near the shading point get one more bounce
+//! ([`GatherOptions::near`]).
 //!
 //! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`; rows are
 //! rendered in parallel and the image does not depend on the number of threads.
@@ -48,6 +49,12 @@ pub struct GatherOptions {
     /// above this multiple of the area-weighted mean are also sampled by area (one more shadow
     /// ray per sample), combined with the gather rays by multiple importance sampling; 0: off.
     pub bright: f32,
+    /// One more bounce near the shading point: a gather ray whose hit lies closer than this
+    /// multiple of the square root of the hit element's area is shaded there (an emitter
+    /// sample, a gather ray reading the solution, a bright-element sample) instead of reading
+    /// the element's radiosity, which stands for the element as seen from afar (corners,
+    /// contact); 0: off.
+    pub near: f32,
 }
 
 impl Default for GatherOptions {
@@ -58,6 +65,7 @@ impl Default for GatherOptions {
             two_sided: false,
             lookup: Lookup::Element,
             bright: 16.0,
+            near: 2.0,
         }
     }
 }
@@ -75,6 +83,9 @@ pub struct GatherStats {
     pub lookups: u64,
     /// Look-ups that found no element (read as black).
     pub lookup_misses: u64,
+    /// Gather hits shaded by one more bounce ([`GatherOptions::near`]).
+    #[serde(default)]
+    pub near: u64,
     /// Solution triangles sampled as bright elements ([`GatherOptions::bright`]).
     pub bright_triangles: u64,
     /// Wall time of the image, seconds (without preparing the solution).
@@ -91,9 +102,10 @@ pub struct GatherStats {
 /// the solution's radiosity minus the emitted exitance there (direct light is not counted
 /// twice), times ρ/π. Emission that a gather ray hits is combined with the emitter sample by
 /// multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
-/// close to the shading point (corners) from spiking. Rays that leave the scene upwards see the
-/// sky. One-sided surfaces absorb at their back (the path tracer's convention) unless the
-/// solution is two-sided.
+/// close to the shading point (corners) from spiking. A gather ray whose hit lies within
+/// [`GatherOptions::near`] element sizes is shaded there by one more such bounce instead. Rays
+/// that leave the scene upwards see the sky. One-sided surfaces absorb at their back (the path
+/// tracer's convention) unless the solution is two-sided.
 pub struct Gatherer<'a> {
     scene: &'a Scene,
     caster: &'a RayCaster<'a>,
@@ -104,6 +116,8 @@ pub struct Gatherer<'a> {
     bright: Option<Bright>,
     eps: f32,
     up: Vec3,
+    /// `GatherOptions::near` squared.
+    near2: f32,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -113,6 +127,7 @@ struct Counts {
     shadow: u64,
     lookups: u64,
     misses: u64,
+    near: u64,
 }
 
 /// `(i + jitter) / n` strata of a `a × b` grid for sample `k` (samples beyond the grid are
@@ -158,13 +173,14 @@ impl<'a> Gatherer<'a> {
             bright,
             eps: surface_eps(scene),
             up: scene.up.vector(),
+            near2: opts.near * opts.near,
         }
     }
 
     /// Radiosity B (W/m²) of the solution at point `q` of a surface, on the side whose normal
     /// is `n`, and the density per unit area of a bright sample there; `None` when no element
     /// is there.
-    fn radiosity(&self, q: Vec3, n: Vec3, cnt: &mut Counts) -> Option<(Vec3, f32)> {
+    fn radiosity(&self, q: Vec3, n: Vec3, cnt: &mut Counts) -> Option<(Vec3, f32, f32)> {
         cnt.lookups += 1;
         let h = if n.dot(SPLIT) > 0.0 { 0 } else { 1 };
         let (Some(c), Some(m)) = (&self.half_casters[h], &self.sol.halves[h]) else {
@@ -182,6 +198,7 @@ impl<'a> Gatherer<'a> {
                 return Some((
                     col[0] * (1.0 - hit.u - hit.v) + col[1] * hit.u + col[2] * hit.v,
                     pdf,
+                    m.scene.areas[hit.tri as usize],
                 ));
             }
         }
@@ -192,7 +209,8 @@ impl<'a> Gatherer<'a> {
     /// Radiance reflected at `x` (already offset off the surface) of normal `n` and
     /// reflectance `rho`: ρ/π × (direct irradiance from one emitter sample `ul` and the sun +
     /// indirect irradiance from one cosine-weighted gather ray `ud`, and one sample of the bright
-    /// elements).
+    /// elements). At `depth` 0 a near hit of the gather ray ([`GatherOptions::near`]) is shaded
+    /// by this function again at depth 1, with samples drawn from `rng`.
     #[allow(clippy::too_many_arguments)]
     fn reflected(
         &self,
@@ -203,6 +221,8 @@ impl<'a> Gatherer<'a> {
         ul: (f32, f32),
         ud: (f32, f32),
         ub: (f64, (f32, f32)),
+        depth: u32,
+        rng: &mut SplitMix64,
         cnt: &mut Counts,
     ) -> Vec3 {
         let scene = self.scene;
@@ -268,15 +288,26 @@ impl<'a> Gatherer<'a> {
                     }
                     // The solution's reflected radiosity there, weighted against the bright
                     // elements' sample when it is one of them.
-                    if let Some((b, pdf_b)) = self.radiosity(q, ns, cnt) {
+                    if let Some((b, pdf_b, area)) = self.radiosity(q, ns, cnt) {
                         let emitted = if front { mat.emission * PI } else { Vec3::ZERO };
+                        let near = depth == 0 && h.t * h.t < self.near2 * area;
                         let w = if pdf_b > 0.0 {
                             let pdf_sa = pdf_b * h.t * h.t / ns.dot(d).abs().max(1e-12);
                             power_heuristic(cos / PI, pdf_sa)
                         } else {
                             1.0
                         };
-                        l += (b - emitted).max(Vec3::ZERO) / PI * w;
+                        if near && mat.rho.max_element() > 0.0 {
+                            cnt.near += 1;
+                            let qo = q + ns * self.eps;
+                            let r2 = |rng: &mut SplitMix64| (rng.next_f32(), rng.next_f32());
+                            let (upick2, ul2, ud2) = (rng.next_f64(), r2(rng), r2(rng));
+                            let ub2 = (rng.next_f64(), r2(rng));
+                            l += self.reflected(qo, ns, mat.rho, upick2, ul2, ud2, ub2, 1, rng, cnt)
+                                * w;
+                        } else {
+                            l += (b - emitted).max(Vec3::ZERO) / PI * w;
+                        }
                     }
                     l
                 }
@@ -343,7 +374,7 @@ impl<'a> Gatherer<'a> {
             if mat.rho.max_element() > 0.0 {
                 let ns = if front { ng } else { -ng };
                 let p = frame.eye + d * h.t + ns * self.eps;
-                l += self.reflected(p, ns, mat.rho, upick, ul, ud, ub, cnt);
+                l += self.reflected(p, ns, mat.rho, upick, ul, ud, ub, 0, &mut rng, cnt);
             }
             sum += l.as_dvec3();
         }
@@ -360,6 +391,12 @@ impl<'a> Gatherer<'a> {
         view.validate()?;
         if self.opts.rays == 0 {
             return Err(Error::Config("gather rays must be at least 1".into()));
+        }
+        if !(self.opts.near >= 0.0 && self.opts.near.is_finite()) {
+            return Err(Error::Config(format!(
+                "gather near factor {} must be a number >= 0",
+                self.opts.near
+            )));
         }
         if self.opts.bright.is_nan() || self.opts.bright < 0.0 {
             return Err(Error::Config(format!(
@@ -382,14 +419,16 @@ impl<'a> Gatherer<'a> {
             shadow_rays: sum(|c| c.shadow),
             lookups: sum(|c| c.lookups),
             lookup_misses: sum(|c| c.misses),
+            near: sum(|c| c.near),
             bright_triangles: self.bright.as_ref().map_or(0, |b| b.tris.len() as u64),
             seconds: t0.elapsed().as_secs_f64(),
         };
         tracing::info!(
-            "gather: {} camera rays, {} gather rays, {} shadow rays, {} look-ups ({} missed) in \
+            "gather: {} camera rays, {} gather rays ({} near), {} shadow rays, {} look-ups ({} missed) in \
              {:.2} s",
             stats.camera_rays,
             stats.gather_rays,
+            stats.near,
             stats.shadow_rays,
             stats.lookups,
             stats.lookup_misses,

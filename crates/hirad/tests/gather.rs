@@ -230,6 +230,46 @@ fn furnace_gather_returns_the_analytic_radiosity() {
     }
 }
 
+/// One more bounce at near hits: in the furnace (ρ = 0.5, L_e = 1/π) with a solution that holds
+/// the emission only (B = E = 1, no reflected light), the gather reads nothing from the
+/// solution's elements, so an image is the emitted radiance plus the bounces it shades
+/// exactly: L_e (1 + ρ) without near hits, L_e (1 + ρ + ρ²) when every hit is near; with the
+/// exact solution (B = 2) it is B/π whatever the near factor.
+#[test]
+fn near_hits_get_one_more_bounce_of_exact_light() {
+    let (scene, mesh) = solved("furnace:2", "fast");
+    let view = CameraView {
+        width: 16,
+        height: 16,
+        ..CameraView::from_camera(&scene.default_camera())
+    };
+    let with = |b: f32| ColoredMesh {
+        colors: vec![Vec3::splat(b); mesh.colors.len()],
+        ..mesh.clone()
+    };
+    let (emission_only, exact) = (with(1.0), with(2.0));
+    for (what, m, near, want) in [
+        ("emission only, no near hits", &emission_only, 0.0, 1.5),
+        ("emission only, every hit near", &emission_only, 1e6, 1.75),
+        ("exact, every hit near", &exact, 1e6, 2.0),
+        ("exact, default near", &exact, 2.0, 2.0),
+    ] {
+        let opts = GatherOptions {
+            rays: 256,
+            bright: 0.0,
+            near,
+            ..Default::default()
+        };
+        let want = want / PI;
+        let mean = gather(&scene, m, &view, &opts).mean().x as f64;
+        println!(
+            "furnace, {what}: mean {:.4}% off",
+            100.0 * (mean - want) / want
+        );
+        assert!((mean - want).abs() / want < 0.003, "{what}: {mean} against {want}");
+    }
+}
+
 /// Same seed: the same image with 1 and 2 threads, bit for bit; another seed: another image.
 #[test]
 fn gather_is_seeded_and_thread_count_independent() {

@@ -310,6 +310,11 @@ pub struct GatherArgs {
     /// gather rays by multiple importance sampling (0: off).
     #[arg(long, default_value_t = 16.0, value_parser = parse_factor)]
     pub gather_bright: f32,
+    /// One more bounce near the shading point: gather hits closer than this multiple of the
+    /// square root of their element's area are shaded there instead of reading the element's
+    /// radiosity (0: off).
+    #[arg(long, default_value_t = 2.0, value_parser = parse_factor)]
+    pub gather_near: f32,
 }
 
 fn parse_lookup(s: &str) -> Result<Lookup, String> {
@@ -358,6 +363,7 @@ impl GatherArgs {
             two_sided: two_sided || scene.two_sided || sol.has_back_faces(),
             lookup: self.gather_lookup,
             bright: self.gather_bright,
+            near: self.gather_near,
         };
         tracing::info!(
             "gather: solution matched in {prepare_seconds:.2} s ({} front, {} back triangles, \
