@@ -303,7 +303,8 @@ impl<'a> Gatherer<'a> {
                             let r2 = |rng: &mut SplitMix64| (rng.next_f32(), rng.next_f32());
                             let (upick2, ul2, ud2) = (rng.next_f64(), r2(rng), r2(rng));
                             let ub2 = (rng.next_f64(), r2(rng));
-                            l += self.reflected(qo, ns, mat.rho, upick2, ul2, ud2, ub2, 1, rng, cnt)
+                            l += self
+                                .reflected(qo, ns, mat.rho, upick2, ul2, ud2, ub2, 1, rng, cnt)
                                 * w;
                         } else {
                             l += (b - emitted).max(Vec3::ZERO) / PI * w;

@@ -348,8 +348,9 @@ pub fn markdown(d: &ReportData) -> String {
             Boxes::Tight => {
                 "each node's box shrunk to its contents, a node's own surfaces behind a box of \
                  their own, long runs of them split into pieces behind boxes of their own, a \
-                 node with one child and no surfaces passed through; each surface tested at \
-                 its node; `--ray-boxes cluster` for the strategies' own boxes"
+                 node with one child and no surfaces passed through, inner children pulled up \
+                 into their parent's lanes (up to eight); each surface tested behind its \
+                 node's box; `--ray-boxes cluster` for the strategies' own boxes"
             }
             Boxes::Nodes => {
                 "each node's box shrunk to its contents, a node's own surfaces behind one box \

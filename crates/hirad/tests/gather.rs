@@ -266,7 +266,10 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
             "furnace, {what}: mean {:.4}% off",
             100.0 * (mean - want) / want
         );
-        assert!((mean - want).abs() / want < 0.003, "{what}: {mean} against {want}");
+        assert!(
+            (mean - want).abs() / want < 0.003,
+            "{what}: {mean} against {want}"
+        );
     }
 }
 

@@ -259,6 +259,45 @@ fn split_runs_test_fewer_triangles() {
     );
 }
 
+/// Binary trees laid out with tight boxes pull inner children up into their parent's lanes
+/// (up to eight): a ray visits far fewer nodes than through the tree's own two-lane nodes,
+/// with the same answers as brute force (closest hits too).
+#[test]
+fn binary_trees_are_collapsed_into_wide_nodes() {
+    // Small triangles, so that few cross a k-d split plane and stay at inner nodes.
+    let mut g = SplitMix64::new(11);
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for i in 0..3000u32 {
+        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * 4.0;
+        for _ in 0..3 {
+            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * 0.1);
+        }
+        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let scene = scene_from(pos, tris);
+    let segs = random_segments(&scene, 12, 2000);
+    for strategy in [Strategy::Kdt, Strategy::Obt, Strategy::Okdt] {
+        let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
+        assert!(tree.nodes.iter().all(|n| n.num_children <= 2));
+        let occ = check_against_brute(&scene, &tree, &segs);
+        assert!(occ > 100 && occ < 1900, "{occ}");
+        let wide = occlusion_stats(&scene, &tree, Boxes::Tight, &segs);
+        let own = occlusion_stats(&scene, &tree, Boxes::Nodes, &segs);
+        println!(
+            "{strategy:?}: nodes per ray {:.2} collapsed, {:.2} as built",
+            wide.nodes_per_ray(),
+            own.nodes_per_ray()
+        );
+        assert!(
+            wide.nodes_per_ray() < 0.7 * own.nodes_per_ray(),
+            "{strategy:?} {} {}",
+            wide.nodes_per_ray(),
+            own.nodes_per_ray()
+        );
+    }
+}
+
 #[test]
 fn hand_built_trees_hit_something() {
     // The random scenes are not trivially empty: a good share of the segments is occluded.

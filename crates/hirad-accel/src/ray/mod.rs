@@ -191,8 +191,9 @@ struct Entry {
 
 /// Ray caster over a scene and one of its cluster trees.
 ///
-/// [`RayCaster::new`] lays the tree out for traversal without changing its topology
-/// (`ray/layout/`): the children of a node in groups of four boxes in structure-of-arrays form
+/// [`RayCaster::new`] lays the tree out for traversal (`ray/layout/`; with tight boxes, inner
+/// children pulled up into their parent's lanes, up to eight, as wide BVHs collapse binary
+/// ones): the children of a node in groups of four boxes in structure-of-arrays form
 /// (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
 /// child reference, the triangles attached to each node (inner nodes included) in packets of
 /// four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap

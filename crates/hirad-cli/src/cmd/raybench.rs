@@ -35,8 +35,9 @@ pub struct Args {
     pub brute: bool,
     /// Boxes the traversal tests: tight (every node's box shrunk to what lies below it, a
     /// node with one child and no triangles passed through, the triangles attached to an
-    /// inner node behind a box of their own, and long runs of them split into pieces behind
-    /// boxes of their own), nodes (the same without splitting runs) or cluster (the
+    /// inner node behind a box of their own, long runs of them split into pieces behind
+    /// boxes of their own, and inner children pulled up into their parent's lanes, up to
+    /// eight), nodes (the tree's own nodes, runs not split) or cluster (the
     /// strategy's own boxes, e.g. the k-d cells of kdt/obt, and every node visited, its
     /// triangles tested whenever it is). Each triangle is tested at its node; same results.
     #[arg(long, default_value = "tight")]

@@ -118,6 +118,39 @@ impl Layout {
         let pass: Vec<bool> = (0..n)
             .map(|i| boxes != Boxes::Cluster && own[i].is_empty() && kids(i as u32).count() == 1)
             .collect();
+        // The lanes of each node: its children, or with tight boxes, inner children pulled
+        // up into the node's group (`collapse`).
+        let lanes: Vec<Vec<Lane>> =
+            if boxes == Boxes::Tight && (nt as usize).div_ceil(4) + n <= LEAF_MAX_START {
+                let kid_lists: Vec<Vec<u32>> = (0..n as u32).map(|id| kids(id).collect()).collect();
+                collapse(&order, &kid_lists, &own, &runs, &pass, &bound)
+            } else {
+                (0..n as u32)
+                    .map(|id| kids(id).map(Lane::Node).collect())
+                    .collect()
+            };
+        let mut absorbed = vec![false; n];
+        for l in &lanes {
+            for lane in l {
+                if let Lane::Run(a) = *lane {
+                    absorbed[a as usize] = true;
+                }
+            }
+        }
+        // Nodes pulled up whose own run is empty are not laid out either.
+        let mut laid = vec![false; n];
+        for &id in &order {
+            if id == 0 || laid[id as usize] {
+                laid[id as usize] = true;
+            }
+            if laid[id as usize] {
+                for lane in &lanes[id as usize] {
+                    if let Lane::Node(c) = *lane {
+                        laid[c as usize] = true;
+                    }
+                }
+            }
+        }
         // Pass 1: references, group and triangle positions.
         let mut refs = vec![NONE; n];
         let mut tri_pos = vec![0usize; n];
@@ -132,12 +165,16 @@ impl Layout {
             np[k] += t.div_ceil(size);
             start
         };
+        let mut run_pos = vec![0usize; n];
         for &id in &order {
             let i = id as usize;
-            if pass[i] {
+            if absorbed[i] {
+                run_pos[i] = alloc(&mut np, own[i].len());
+            }
+            if pass[i] || !laid[i] {
                 continue;
             }
-            let c = kids(id).count();
+            let c = lanes[i].len();
             let t = own[i].len();
             // Every chunk starts at most `t` packets further on; the node's groups (its children
             // and top pieces, then fewer groups of pieces than triangles) stay below RUN.
@@ -194,17 +231,25 @@ impl Layout {
         }
         for &id in &order {
             let i = id as usize;
-            if pass[i] {
+            let ids = &own[i];
+            if absorbed[i] {
+                store_run(scene, &mut packets, &mut wide, ids, run_pos[i]);
+            }
+            if pass[i] || !laid[i] {
                 continue;
             }
             let r = refs[i];
-            let ids = &own[i];
             if r & LEAF == 0 {
                 let g0 = r as usize;
-                let k: Vec<u32> = kids(id).collect();
-                let children = k
-                    .iter()
-                    .map(|&c| (bound[c as usize], link[c as usize], node_faces[c as usize]));
+                let k = &lanes[i];
+                let children = k.iter().map(|&lane| match lane {
+                    Lane::Node(c) => (bound[c as usize], link[c as usize], node_faces[c as usize]),
+                    Lane::Run(a) => (
+                        run_bound[a as usize],
+                        leaf_ref(run_pos[a as usize], own[a as usize].len()) | CHUNK,
+                        run_faces[a as usize],
+                    ),
+                });
                 // The box, reference and face bits of a piece of the node's own run.
                 let lane_of = |p: &Piece| {
                     let tris = &ids[p.range.clone()];
@@ -258,24 +303,13 @@ impl Layout {
                 }
                 groups[g0].num_groups = num_groups as u32;
             }
-            let mut store = |ids: &[u32], at: usize| {
-                for (i, &s) in ids.iter().enumerate() {
-                    let tv = scene.tri_vertices(s as usize);
-                    if ids.len() >= WIDE_MIN {
-                        let w = &mut wide[at + i / 16];
-                        put(&mut w.v, &mut w.id, i % 16, tv, s);
-                    } else {
-                        let p = &mut packets[at + i / 4];
-                        put(&mut p.v, &mut p.id, i % 4, tv, s);
-                    }
-                }
-            };
             match &runs[i] {
-                None => store(ids, tri_pos[i]),
+                None => store_run(scene, &mut packets, &mut wide, ids, tri_pos[i]),
                 Some(rt) => {
                     for p in rt.top.iter().chain(rt.subs.iter().flatten()) {
                         if p.sub.is_none() {
-                            store(&ids[p.range.clone()], leaf_run(p.r).0);
+                            let at = leaf_run(p.r).0;
+                            store_run(scene, &mut packets, &mut wide, &ids[p.range.clone()], at);
                         }
                     }
                 }
@@ -289,6 +323,90 @@ impl Layout {
             faces,
             packets,
             wide,
+        }
+    }
+}
+
+/// Lanes a node may hold after [`collapse`]: two groups. Measured against one group on the
+/// solver's and the paper's segments (`docs/perf-log.md` 2026-12-05 (20)).
+const WIDTH: usize = 8;
+
+/// What a lane of a laid-out node holds: a node, or the own run of an inner node pulled up
+/// into it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Lane {
+    Node(u32),
+    Run(u32),
+}
+
+/// Lanes per node when inner children are pulled up (tight boxes): in pre-order, while a
+/// node's lanes fit in two groups ([`WIDTH`], one lane kept for its own run), the inner lane of
+/// largest box area is replaced by that node's children and, when it has triangles of its
+/// own, a lane holding them (at most [`LEAF_MAX_TRIS`], not split into pieces). Nodes passed
+/// through and nodes whose run is split into pieces keep their children. The same triangles,
+/// each behind the box of its node's run.
+fn collapse(
+    order: &[u32],
+    kids: &[Vec<u32>],
+    own: &[Vec<u32>],
+    runs: &[Option<RunTree>],
+    pass: &[bool],
+    bound: &[Aabb],
+) -> Vec<Vec<Lane>> {
+    let n = kids.len();
+    let mut lanes: Vec<Vec<Lane>> = vec![Vec::new(); n];
+    let mut gone = vec![false; n];
+    for &id in order {
+        let i = id as usize;
+        let mut l: Vec<Lane> = kids[i].iter().copied().map(Lane::Node).collect();
+        if !gone[i] && !pass[i] && runs[i].is_none() {
+            let width = WIDTH - usize::from(!own[i].is_empty());
+            loop {
+                let mut pick: Option<(usize, f32)> = None;
+                for (j, lane) in l.iter().enumerate() {
+                    let Lane::Node(c) = *lane else { continue };
+                    let c = c as usize;
+                    let nk = kids[c].len();
+                    let extra = usize::from(!own[c].is_empty());
+                    if nk == 0
+                        || runs[c].is_some()
+                        || own[c].len() > LEAF_MAX_TRIS
+                        || l.len() - 1 + nk + extra > width
+                    {
+                        continue;
+                    }
+                    let a = bound[c].surface_area();
+                    if pick.is_none_or(|(_, b)| a > b) {
+                        pick = Some((j, a));
+                    }
+                }
+                let Some((j, _)) = pick else { break };
+                let Lane::Node(c) = l.remove(j) else {
+                    unreachable!()
+                };
+                gone[c as usize] = true;
+                let mut add: Vec<Lane> = kids[c as usize].iter().copied().map(Lane::Node).collect();
+                if !own[c as usize].is_empty() {
+                    add.push(Lane::Run(c));
+                }
+                l.splice(j..j, add);
+            }
+        }
+        lanes[i] = l;
+    }
+    lanes
+}
+
+/// Store the triangles `ids` of a run from packet `at` on (in the array its length selects).
+fn store_run(scene: &Scene, packets: &mut [Packet], wide: &mut [Wide], ids: &[u32], at: usize) {
+    for (i, &s) in ids.iter().enumerate() {
+        let tv = scene.tri_vertices(s as usize);
+        if ids.len() >= WIDE_MIN {
+            let w = &mut wide[at + i / 16];
+            put(&mut w.v, &mut w.id, i % 16, tv, s);
+        } else {
+            let p = &mut packets[at + i / 4];
+            put(&mut p.v, &mut p.id, i % 4, tv, s);
         }
     }
 }

@@ -1,7 +1,8 @@
 //! Traversal layout of a cluster tree ([`Layout`]): the tree's own nodes and triangles stored
 //! for 4-wide SIMD box tests and packet triangle tests, in depth-first pre-order (a subtree is
-//! contiguous). The topology is kept: no node is added or merged, and every triangle is tested
-//! through the node it is attached to; [`Boxes`] chooses only which boxes are tested.
+//! contiguous). No node is added, and every triangle is tested behind the box of the node it is
+//! attached to (or of a piece of that node's run); [`Boxes`] chooses which boxes are tested, and
+//! with [`Boxes::Tight`] inner children are pulled up into their parent's lanes.
 //!
 //! - `encode`: child references (group, leaf or chunk in place, own run) and the [`Group`];
 //! - `run_tree`: a node's long own run split into boxed pieces, and its cost model;
@@ -37,7 +38,13 @@ pub enum Boxes {
     /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
     /// run would have taken, so every triangle is still reached through, and only through,
     /// the node it is attached to; a ray tests only the pieces whose boxes it hits (the many
-    /// surfaces a `kdt` node keeps because they cross its split plane, a large leaf).
+    /// surfaces a `kdt` node keeps because they cross its split plane, a large leaf). Inner
+    /// children are pulled up into their parent's lanes while the parent holds at most eight
+    /// (one lane kept for its own run), the inner child of largest box first, as wide BVHs
+    /// collapse binary ones: a child pulled up is not visited as a node, its children take
+    /// its lane and its own triangles (at most 31, not split into pieces) a lane of their own
+    /// behind their box. A ray visits about half as many nodes of the binary `kdt`, `obt` and
+    /// `okdt` trees, whose nodes held two lanes.
     #[default]
     Tight,
     /// Every node's box shrunk to what lies below it (the union of its own triangles' boxes
