@@ -234,7 +234,7 @@ fn furnace_gather_returns_the_analytic_radiosity() {
 /// the emission only (B = E = 1, no reflected light), the gather reads nothing from the
 /// solution's elements, so an image is the emitted radiance plus the bounces it shades
 /// exactly: L_e (1 + ρ) without near hits, L_e (1 + ρ + ρ²) when every hit is near; with the
-/// exact solution (B = 2) it is B/π whatever the near factor.
+/// exact solution (B = 2) it is B/π whatever the near factor, with bright-element samples too.
 #[test]
 fn near_hits_get_one_more_bounce_of_exact_light() {
     let (scene, mesh) = solved("furnace:2", "fast");
@@ -248,15 +248,30 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
         ..mesh.clone()
     };
     let (emission_only, exact) = (with(1.0), with(2.0));
-    for (what, m, near, want) in [
-        ("emission only, no near hits", &emission_only, 0.0, 1.5),
-        ("emission only, every hit near", &emission_only, 1e6, 1.75),
-        ("exact, every hit near", &exact, 1e6, 2.0),
-        ("exact, default near", &exact, 2.0, 2.0),
+    // Bright factor 0.5 samples every element by area too: the near bounce's estimate is
+    // weighted against those samples, or light would be counted twice.
+    for (what, m, near, bright, want) in [
+        ("emission only, no near hits", &emission_only, 0.0, 0.0, 1.5),
+        (
+            "emission only, every hit near",
+            &emission_only,
+            1e6,
+            0.0,
+            1.75,
+        ),
+        ("exact, every hit near", &exact, 1e6, 0.0, 2.0),
+        (
+            "exact, every hit near, bright elements",
+            &exact,
+            1e6,
+            0.5,
+            2.0,
+        ),
+        ("exact, default near", &exact, 2.0, 0.0, 2.0),
     ] {
         let opts = GatherOptions {
             rays: 256,
-            bright: 0.0,
+            bright,
             near,
             ..Default::default()
         };

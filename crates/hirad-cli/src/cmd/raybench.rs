@@ -39,7 +39,7 @@ pub struct Args {
     /// boxes of their own, and inner children pulled up into their parent's lanes, up to
     /// eight), nodes (the tree's own nodes, runs not split) or cluster (the
     /// strategy's own boxes, e.g. the k-d cells of kdt/obt, and every node visited, its
-    /// triangles tested whenever it is). Each triangle is tested at its node; same results.
+    /// triangles tested whenever it is). Each triangle belongs to its node's box; same results.
     #[arg(long, default_value = "tight")]
     pub boxes: String,
     /// Also write the triangles and segments to FILE, for casting the same segments with

@@ -120,15 +120,25 @@ impl Layout {
             .collect();
         // The lanes of each node: its children, or with tight boxes, inner children pulled
         // up into the node's group (`collapse`).
-        let lanes: Vec<Vec<Lane>> =
-            if boxes == Boxes::Tight && (nt as usize).div_ceil(4) + n <= LEAF_MAX_START {
-                let kid_lists: Vec<Vec<u32>> = (0..n as u32).map(|id| kids(id).collect()).collect();
-                collapse(&order, &kid_lists, &own, &runs, &pass, &bound)
-            } else {
-                (0..n as u32)
-                    .map(|id| kids(id).map(Lane::Node).collect())
-                    .collect()
-            };
+        // Every run's first packet stays below `LEAF_MAX_START` (a packet holds at least one
+        // triangle), so pulled-up runs are encoded in place; a node with two parents
+        // (malformed input) leaves the tree as it is.
+        let kid_lists: Vec<Vec<u32>> = (0..n as u32).map(|id| kids(id).collect()).collect();
+        let mut parents = vec![0u8; n];
+        for &c in kid_lists.iter().flatten() {
+            parents[c as usize] = parents[c as usize].saturating_add(1);
+        }
+        let lanes: Vec<Vec<Lane>> = if boxes == Boxes::Tight
+            && nt as usize <= LEAF_MAX_START
+            && parents.iter().all(|&p| p <= 1)
+        {
+            collapse(&order, &kid_lists, &own, &runs, &pass, &bound)
+        } else {
+            kid_lists
+                .iter()
+                .map(|k| k.iter().copied().map(Lane::Node).collect())
+                .collect()
+        };
         let mut absorbed = vec![false; n];
         for l in &lanes {
             for lane in l {
@@ -137,7 +147,7 @@ impl Layout {
                 }
             }
         }
-        // Nodes pulled up whose own run is empty are not laid out either.
+        // Nodes pulled up are not laid out (their own runs are lanes of the node above).
         let mut laid = vec![false; n];
         for &id in &order {
             if id == 0 || laid[id as usize] {
@@ -340,11 +350,13 @@ enum Lane {
 }
 
 /// Lanes per node when inner children are pulled up (tight boxes): in pre-order, while a
-/// node's lanes fit in two groups ([`WIDTH`], one lane kept for its own run), the inner lane of
-/// largest box area is replaced by that node's children and, when it has triangles of its
-/// own, a lane holding them (at most [`LEAF_MAX_TRIS`], not split into pieces). Nodes passed
-/// through and nodes whose run is split into pieces keep their children. The same triangles,
-/// each behind the box of its node's run.
+/// node's lanes fit in two groups ([`WIDTH`], one lane fewer for a node with triangles of its
+/// own), the inner lane of largest box area is replaced by that node's children and, when it
+/// has triangles of its own, a lane holding them (at most [`LEAF_MAX_TRIS`], not split into
+/// pieces). Nodes passed through and nodes whose run is split into pieces keep their
+/// children. The same triangles, each behind the box of its node's run, but for a node whose
+/// lanes fill its last group: its own run is tested whenever it is visited (keeping a lane
+/// free for it instead was no faster on `soup`, `docs/perf-log.md` 2026-12-05 (20)).
 fn collapse(
     order: &[u32],
     kids: &[Vec<u32>],
@@ -367,12 +379,8 @@ fn collapse(
                     let Lane::Node(c) = *lane else { continue };
                     let c = c as usize;
                     let nk = kids[c].len();
-                    let extra = usize::from(!own[c].is_empty());
-                    if nk == 0
-                        || runs[c].is_some()
-                        || own[c].len() > LEAF_MAX_TRIS
-                        || l.len() - 1 + nk + extra > width
-                    {
+                    let len = l.len() - 1 + nk + usize::from(!own[c].is_empty());
+                    if nk == 0 || runs[c].is_some() || own[c].len() > LEAF_MAX_TRIS || len > width {
                         continue;
                     }
                     let a = bound[c].surface_area();

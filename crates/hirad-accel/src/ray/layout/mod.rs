@@ -36,8 +36,8 @@ pub enum Boxes {
     /// pieces of nearby triangles behind boxes of their own (`RunTree` in `ray/layout/run_tree.rs`: cut
     /// by the surface area heuristic, down to chunks of at most 16), where a cost model says
     /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
-    /// run would have taken, so every triangle is still reached through, and only through,
-    /// the node it is attached to; a ray tests only the pieces whose boxes it hits (the many
+    /// run would have taken, so every triangle is still reached only behind its node's box;
+    /// a ray tests only the pieces whose boxes it hits (the many
     /// surfaces a `kdt` node keeps because they cross its split plane, a large leaf). Inner
     /// children are pulled up into their parent's lanes while the parent holds at most eight
     /// (one lane kept for its own run), the inner child of largest box first, as wide BVHs
@@ -72,7 +72,9 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 /// The laid-out tree.
 ///
 /// - A node with children (or with more triangles than a leaf reference can hold) owns
-///   `⌈children/4⌉` consecutive [`Group`]s of 128 bytes: the boxes of up to four children in
+///   `⌈lanes/4⌉` consecutive [`Group`]s of 128 bytes (its children's, or with tight boxes
+///   those left after inner children were pulled up into it; a node pulled up owns none):
+///   the boxes of up to four children in
 ///   structure-of-arrays form (one 4-wide SIMD slab test checks all four), the children's
 ///   references, the node's own triangle run (surfaces attached at inner nodes) and, in the
 ///   first group, its number of groups.
