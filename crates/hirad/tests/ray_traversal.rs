@@ -175,6 +175,7 @@ fn check_against_brute(scene: &Scene, tree: &ClusterTree, segs: &[Segment]) -> u
     let mut occluded = 0;
     for boxes in Boxes::ALL {
         let rc = RayCaster::with_boxes(scene, tree, boxes);
+        rc.validate().unwrap_or_else(|e| panic!("{boxes:?}: {e}"));
         let mut stream = vec![false; segs.len()];
         rc.occluded_stream(segs, &mut stream);
         occluded = 0;
@@ -296,6 +297,79 @@ fn binary_trees_are_collapsed_into_wide_nodes() {
             own.nodes_per_ray()
         );
     }
+}
+
+/// A malformed tree whose node 9 is a child of both 1 and 2 (contiguous child ranges that
+/// overlap; 2 has a triangle of its own, so its box is not empty): every lane of the layout
+/// refers to something and rays equal brute force (the layout then keeps the tree's own
+/// nodes, without pulling children up).
+#[test]
+fn a_node_with_two_parents_is_laid_out_safely() {
+    let mut g = SplitMix64::new(5);
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for i in 0..12u32 {
+        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * 2.0;
+        for _ in 0..3 {
+            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * 0.8);
+        }
+        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let scene = scene_from(pos, tris);
+    // (first child, children, surface or none) per node; surface i is listed at index i.
+    let shape: [(u32, u32, Option<u32>); 15] = [
+        (1, 8, Some(0)),
+        (9, 2, None),
+        (9, 1, Some(11)),
+        (0, 0, Some(1)),
+        (0, 0, Some(2)),
+        (0, 0, Some(3)),
+        (0, 0, Some(4)),
+        (0, 0, Some(5)),
+        (0, 0, Some(6)),
+        (11, 2, None),
+        (0, 0, Some(7)),
+        (13, 2, None),
+        (0, 0, Some(8)),
+        (0, 0, Some(9)),
+        (0, 0, Some(10)),
+    ];
+    let mut tree = ClusterTree::build(&scene, Strategy::Sah, &ClusterConfig::default());
+    tree.surfaces = (0..12).collect();
+    tree.nodes = shape
+        .iter()
+        .map(
+            |&(first_child, num_children, s)| hirad::cluster::ClusterNode {
+                bbox: Aabb::EMPTY,
+                first_child,
+                num_children,
+                first_surface: s.unwrap_or(0),
+                num_surfaces: s.map_or(0, |_| 1),
+                parent: 0,
+                depth: 0,
+            },
+        )
+        .collect();
+    for (i, &(_, _, s)) in shape.iter().enumerate() {
+        if let Some(s) = s {
+            tree.surface_node[s as usize] = i as u32;
+        }
+    }
+    for i in (0..shape.len()).rev() {
+        let mut b = Aabb::EMPTY;
+        let n = tree.nodes[i];
+        if n.num_surfaces > 0 {
+            b.grow_box(&scene.tri_bbox(n.first_surface as usize));
+        }
+        for c in n.children() {
+            let cb = tree.nodes[c as usize].bbox;
+            b.grow_box(&cb);
+        }
+        tree.nodes[i].bbox = b;
+    }
+    let segs = random_segments(&scene, 6, 2000);
+    let occ = check_against_brute(&scene, &tree, &segs);
+    assert!(occ > 20, "{occ}");
 }
 
 #[test]

@@ -251,6 +251,12 @@ impl<'a> RayCaster<'a> {
         self.layout.memory_bytes()
     }
 
+    /// Check the laid-out tree's references (tests): every lane with a box reaches a group or
+    /// a triangle run in range, and every triangle is reached.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        self.layout.validate(self.scene.num_triangles())
+    }
+
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {

@@ -615,3 +615,34 @@ fn stream_overflow_falls_back_to_single_ray() {
         .collect();
     assert_eq!(single, brute);
 }
+
+/// `validate` accepts every strategy's layout and finds a lane that refers to nothing and a
+/// triangle no reference reaches.
+#[test]
+fn validate_finds_broken_references() {
+    let scene = tri_scene("grid", 200, |i| {
+        let (x, y) = ((i % 20) as f32 * 1.5, (i / 20) as f32 * 1.5);
+        [
+            Vec3::new(x, y, (i % 7) as f32),
+            Vec3::new(x + 1.0, y, (i % 5) as f32),
+            Vec3::new(x, y + 1.0, (i % 3) as f32),
+        ]
+    });
+    for s in [Strategy::Kdt, Strategy::Proxi, Strategy::Sah] {
+        let tree = ClusterTree::build(&scene, s, &ClusterConfig::default());
+        for boxes in Boxes::ALL {
+            let rc = RayCaster::with_boxes(&scene, &tree, boxes);
+            assert_eq!(rc.validate(), Ok(()), "{s:?} {boxes:?}");
+            let mut broken = RayCaster::with_boxes(&scene, &tree, boxes);
+            let g = &mut broken.layout.groups[0];
+            let lane = (0..4).find(|&l| g.child[l] != layout::NONE).unwrap();
+            g.child[lane] = layout::NONE;
+            assert!(broken.validate().is_err(), "{s:?} {boxes:?}");
+            let mut dropped = RayCaster::with_boxes(&scene, &tree, boxes);
+            let p = &mut dropped.layout.packets[0];
+            let k = (0..4).find(|&k| p.id[k] != u32::MAX).unwrap();
+            p.id[k] = if p.id[k] == 0 { 1 } else { 0 };
+            assert!(dropped.validate().is_err(), "{s:?} {boxes:?}");
+        }
+    }
+}

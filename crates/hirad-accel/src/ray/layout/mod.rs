@@ -118,6 +118,72 @@ pub(in crate::ray) struct Layout {
 }
 
 impl Layout {
+    /// Check the references: from the root, every lane with a box refers to a group in range
+    /// or a run whose packets are in range, and every triangle of the scene (`num_tris`) is
+    /// stored in a run some reference reaches.
+    pub(in crate::ray) fn validate(&self, num_tris: usize) -> Result<(), String> {
+        let Some(root) = self.root else {
+            return if num_tris == 0 {
+                Ok(())
+            } else {
+                Err("no root".into())
+            };
+        };
+        let mut seen = vec![false; num_tris];
+        let mut visited = vec![false; self.groups.len()];
+        let mut stack = vec![root];
+        while let Some(r) = stack.pop() {
+            if r == encode::NONE {
+                return Err("a lane with a box refers to nothing".into());
+            }
+            let is_group = r & (LEAF | RUN) == 0;
+            if (r & !RUN) as usize >= self.groups.len() && r & LEAF == 0 {
+                return Err(format!(
+                    "reference {r:#x} past the {} groups",
+                    self.groups.len()
+                ));
+            }
+            let (s, n, g0, ng) = self.node(r);
+            let (len, size) = if n >= WIDE_MIN {
+                (self.wide.len(), 16)
+            } else {
+                (self.packets.len(), 4)
+            };
+            if n > 0 && s + n.div_ceil(size) > len {
+                return Err(format!(
+                    "run {s}+{n} of reference {r:#x} past {len} packets"
+                ));
+            }
+            for k in 0..n {
+                let id = if n >= WIDE_MIN {
+                    self.wide[s + k / 16].id[k % 16]
+                } else {
+                    self.packets[s + k / 4].id[k % 4]
+                };
+                match seen.get_mut(id as usize) {
+                    Some(v) => *v = true,
+                    None => return Err(format!("triangle {id} out of range")),
+                }
+            }
+            if is_group && !std::mem::replace(&mut visited[g0], true) {
+                if g0 + ng > self.groups.len() {
+                    return Err(format!("groups {g0}+{ng} past {}", self.groups.len()));
+                }
+                for g in &self.groups[g0..g0 + ng] {
+                    for lane in 0..4 {
+                        if g.b[0][lane] <= g.b[3][lane] {
+                            stack.push(g.child[lane]);
+                        }
+                    }
+                }
+            }
+        }
+        match seen.iter().position(|&v| !v) {
+            Some(t) => Err(format!("triangle {t} reached by no reference")),
+            None => Ok(()),
+        }
+    }
+
     /// Bytes used by the layout.
     pub(in crate::ray) fn memory_bytes(&self) -> usize {
         self.groups.len() * std::mem::size_of::<Group>()
