@@ -119,10 +119,9 @@ impl Layout {
             .map(|i| boxes != Boxes::Cluster && own[i].is_empty() && kids(i as u32).count() == 1)
             .collect();
         // The lanes of each node: its children, or with tight boxes, inner children pulled
-        // up into the node's group (`collapse`).
-        // Every run's first packet stays below `LEAF_MAX_START` (a packet holds at least one
-        // triangle), so pulled-up runs are encoded in place; a node with two parents
-        // (malformed input) leaves the tree as it is.
+        // up into it (`collapse`). Pulled-up runs are encoded in place (a run's first packet
+        // stays below `LEAF_MAX_START`: a packet holds at least one triangle); a node with two
+        // parents (malformed input) leaves the tree as it is.
         let kid_lists: Vec<Vec<u32>> = (0..n as u32).map(|id| kids(id).collect()).collect();
         let mut parents = vec![0u8; n];
         for &c in kid_lists.iter().flatten() {
