@@ -178,8 +178,8 @@ impl<'a> Gatherer<'a> {
     }
 
     /// Radiosity B (W/m²) of the solution at point `q` of a surface, on the side whose normal
-    /// is `n`, and the density per unit area of a bright sample there; `None` when no element
-    /// is there.
+    /// is `n`, the density per unit area of a bright sample there and the area of the element
+    /// found; `None` when no element is there.
     fn radiosity(&self, q: Vec3, n: Vec3, cnt: &mut Counts) -> Option<(Vec3, f32, f32)> {
         cnt.lookups += 1;
         let h = if n.dot(SPLIT) > 0.0 { 0 } else { 1 };
