@@ -119,16 +119,18 @@ impl Layout {
             .map(|i| boxes != Boxes::Cluster && own[i].is_empty() && kids(i as u32).count() == 1)
             .collect();
         // The lanes of each node: its children, or with tight boxes, inner children pulled
-        // up into it (`collapse`). Pulled-up runs are encoded in place (a run's first packet
-        // stays below `LEAF_MAX_START`: a packet holds at least one triangle); a node with two
-        // parents (malformed input) leaves the tree as it is.
+        // up into it (`collapse`). Pulled-up runs and pieces are encoded in place (a chunk's
+        // first packet stays below `LEAF_MAX_START`: a packet holds at least one triangle, and
+        // a run's chunks start at most its length further on); a node with two parents
+        // (malformed input) leaves the tree as it is.
         let kid_lists: Vec<Vec<u32>> = (0..n as u32).map(|id| kids(id).collect()).collect();
         let mut parents = vec![0u8; n];
         for &c in kid_lists.iter().flatten() {
             parents[c as usize] = parents[c as usize].saturating_add(1);
         }
         let lanes: Vec<Vec<Lane>> = if boxes == Boxes::Tight
-            && nt as usize <= LEAF_MAX_START
+            && 2 * nt as usize <= LEAF_MAX_START
+            && n + (nt as usize) < RUN as usize
             && parents.iter().all(|&p| p <= 1)
         {
             collapse(&order, &kid_lists, &own, &runs, &pass, &bound)
@@ -141,7 +143,7 @@ impl Layout {
         let mut absorbed = vec![false; n];
         for l in &lanes {
             for lane in l {
-                if let Lane::Run(a) = *lane {
+                if let Lane::Run(a) | Lane::Piece(a, _) = *lane {
                     absorbed[a as usize] = true;
                 }
             }
@@ -178,7 +180,25 @@ impl Layout {
         for &id in &order {
             let i = id as usize;
             if absorbed[i] {
-                run_pos[i] = alloc(&mut np, own[i].len());
+                match runs[i].as_mut() {
+                    // Its pieces are lanes of the node above; the groups of its sub-pieces
+                    // and its chunks are placed here.
+                    Some(rt) => {
+                        sub_pos[i] = ng;
+                        ng += rt.subs.len();
+                        let mut set = |p: &mut Piece| {
+                            p.r = match p.sub {
+                                Some(j) => (sub_pos[i] + j) as u32,
+                                None => {
+                                    leaf_ref(alloc(&mut np, p.range.len()), p.range.len()) | CHUNK
+                                }
+                            }
+                        };
+                        rt.top.iter_mut().for_each(&mut set);
+                        rt.subs.iter_mut().flatten().for_each(&mut set);
+                    }
+                    None => run_pos[i] = alloc(&mut np, own[i].len()),
+                }
             }
             if pass[i] || !laid[i] {
                 continue;
@@ -242,7 +262,13 @@ impl Layout {
             let i = id as usize;
             let ids = &own[i];
             if absorbed[i] {
-                store_run(scene, &mut packets, &mut wide, ids, run_pos[i]);
+                match &runs[i] {
+                    Some(rt) => {
+                        fill_subs(&mut groups, &mut faces, scene, ids, rt, sub_pos[i]);
+                        store_chunks(scene, &mut packets, &mut wide, ids, rt);
+                    }
+                    None => store_run(scene, &mut packets, &mut wide, ids, run_pos[i]),
+                }
             }
             if pass[i] || !laid[i] {
                 continue;
@@ -258,14 +284,13 @@ impl Layout {
                         leaf_ref(run_pos[a as usize], own[a as usize].len()) | CHUNK,
                         run_faces[a as usize],
                     ),
+                    Lane::Piece(a, j) => {
+                        let rt = runs[a as usize].as_ref().expect("pulled-up pieces");
+                        piece_lane(scene, &own[a as usize], &rt.top[j as usize])
+                    }
                 });
                 // The box, reference and face bits of a piece of the node's own run.
-                let lane_of = |p: &Piece| {
-                    let tris = &ids[p.range.clone()];
-                    let b = run_box(scene, tris);
-                    let items = tris.iter().map(|&s| scene.tri_bbox(s as usize));
-                    (b, p.r, face_bits(&b, items.map(|t| (t, flat_bits(&t)))))
-                };
+                let lane_of = |p: &Piece| piece_lane(scene, ids, p);
                 let rt = runs[i].as_ref();
                 let top = rt.into_iter().flat_map(|rt| rt.top.iter().map(lane_of));
                 let first = rt.is_some() && eager[i];
@@ -279,15 +304,8 @@ impl Layout {
                     faces[g0 + j / 4] |= (f as u32) << (8 * (j % 4));
                     lanes += 1;
                 }
-                for (j, sub) in rt.iter().flat_map(|rt| rt.subs.iter().enumerate()) {
-                    let at = sub_pos[i] + j;
-                    for (lane, p) in sub.iter().enumerate() {
-                        let (b, cr, f) = lane_of(p);
-                        groups[at].set_lane(lane, &b, cr);
-                        faces[at] |= (f as u32) << (8 * lane);
-                    }
-                    groups[at].num_groups = 1;
-                    groups[at].run = SUB;
+                if let Some(rt) = rt {
+                    fill_subs(&mut groups, &mut faces, scene, ids, rt, sub_pos[i]);
                 }
                 let num_groups = lanes.div_ceil(4).max(1);
                 let nt = if runs[i].is_some() { 0 } else { ids.len() };
@@ -314,14 +332,7 @@ impl Layout {
             }
             match &runs[i] {
                 None => store_run(scene, &mut packets, &mut wide, ids, tri_pos[i]),
-                Some(rt) => {
-                    for p in rt.top.iter().chain(rt.subs.iter().flatten()) {
-                        if p.sub.is_none() {
-                            let at = leaf_run(p.r).0;
-                            store_run(scene, &mut packets, &mut wide, &ids[p.range.clone()], at);
-                        }
-                    }
-                }
+                Some(rt) => store_chunks(scene, &mut packets, &mut wide, ids, rt),
             }
         }
         let b = &bound[0];
@@ -346,14 +357,17 @@ const WIDTH: usize = 8;
 enum Lane {
     Node(u32),
     Run(u32),
+    /// Top piece `.1` of the split run of node `.0`.
+    Piece(u32, u32),
 }
 
 /// Lanes per node when inner children are pulled up (tight boxes): in pre-order, while a
 /// node's lanes fit in two groups ([`WIDTH`], one lane fewer for a node with triangles of its
 /// own), the inner lane of largest box area is replaced by that node's children and, when it
-/// has triangles of its own, a lane holding them (at most [`LEAF_MAX_TRIS`], not split into
-/// pieces). Nodes passed through and nodes whose run is split into pieces keep their
-/// children. The same triangles, each behind the box of its node's run, but for a node whose
+/// has triangles of its own, a lane holding them (at most [`LEAF_MAX_TRIS`]) or, when they
+/// were split into pieces, the lanes of its top pieces. Nodes passed through and nodes whose
+/// run is split into pieces keep their children. The same triangles, each behind the box of
+/// its node's run or piece, but for a node whose
 /// lanes fill its last group: its own run is tested whenever it is visited (keeping a lane
 /// free for it instead was no faster on `soup`, `docs/perf-log.md` 2026-12-05 (20)).
 fn collapse(
@@ -378,8 +392,13 @@ fn collapse(
                     let Lane::Node(c) = *lane else { continue };
                     let c = c as usize;
                     let nk = kids[c].len();
-                    let len = l.len() - 1 + nk + usize::from(!own[c].is_empty());
-                    if nk == 0 || runs[c].is_some() || own[c].len() > LEAF_MAX_TRIS || len > width {
+                    let extra = match &runs[c] {
+                        Some(rt) => rt.top.len(),
+                        None => usize::from(!own[c].is_empty()),
+                    };
+                    let len = l.len() - 1 + nk + extra;
+                    if nk == 0 || (runs[c].is_none() && own[c].len() > LEAF_MAX_TRIS) || len > width
+                    {
                         continue;
                     }
                     let a = bound[c].surface_area();
@@ -393,8 +412,10 @@ fn collapse(
                 };
                 gone[c as usize] = true;
                 let mut add: Vec<Lane> = kids[c as usize].iter().copied().map(Lane::Node).collect();
-                if !own[c as usize].is_empty() {
-                    add.push(Lane::Run(c));
+                match &runs[c as usize] {
+                    Some(rt) => add.extend((0..rt.top.len() as u32).map(|j| Lane::Piece(c, j))),
+                    None if !own[c as usize].is_empty() => add.push(Lane::Run(c)),
+                    None => {}
                 }
                 l.splice(j..j, add);
             }
@@ -414,6 +435,49 @@ fn store_run(scene: &Scene, packets: &mut [Packet], wide: &mut [Wide], ids: &[u3
         } else {
             let p = &mut packets[at + i / 4];
             put(&mut p.v, &mut p.id, i % 4, tv, s);
+        }
+    }
+}
+
+/// The box, reference and face bits of a piece of the run `ids`.
+fn piece_lane(scene: &Scene, ids: &[u32], p: &Piece) -> (Aabb, u32, u8) {
+    let tris = &ids[p.range.clone()];
+    let b = run_box(scene, tris);
+    let items = tris.iter().map(|&s| scene.tri_bbox(s as usize));
+    (b, p.r, face_bits(&b, items.map(|t| (t, flat_bits(&t)))))
+}
+
+/// Fill the groups of the sub-pieces of the split run `ids`, from group `at` on.
+fn fill_subs(
+    groups: &mut [Group],
+    faces: &mut [u32],
+    scene: &Scene,
+    ids: &[u32],
+    rt: &RunTree,
+    at: usize,
+) {
+    for (j, sub) in rt.subs.iter().enumerate() {
+        for (lane, p) in sub.iter().enumerate() {
+            let (b, cr, f) = piece_lane(scene, ids, p);
+            groups[at + j].set_lane(lane, &b, cr);
+            faces[at + j] |= (f as u32) << (8 * lane);
+        }
+        groups[at + j].num_groups = 1;
+        groups[at + j].run = SUB;
+    }
+}
+
+/// Store the chunks of the split run `ids`.
+fn store_chunks(
+    scene: &Scene,
+    packets: &mut [Packet],
+    wide: &mut [Wide],
+    ids: &[u32],
+    rt: &RunTree,
+) {
+    for p in rt.top.iter().chain(rt.subs.iter().flatten()) {
+        if p.sub.is_none() {
+            store_run(scene, packets, wide, &ids[p.range.clone()], leaf_run(p.r).0);
         }
     }
 }

@@ -42,8 +42,8 @@ pub enum Boxes {
     /// children are pulled up into their parent's lanes while the parent holds at most eight
     /// (one lane kept for its own run), the inner child of largest box first, as wide BVHs
     /// collapse binary ones: a child pulled up is not visited as a node, its children take
-    /// its lane and its own triangles (at most 31, not split into pieces) a lane of their own
-    /// behind their box. A ray visits about half as many nodes of the binary `kdt`, `obt` and
+    /// its lane and its own triangles a lane of their own behind their box (at most 31), or
+    /// the lanes of their top pieces when they were split. A ray visits about half as many nodes of the binary `kdt`, `obt` and
     /// `okdt` trees, whose nodes held two lanes.
     #[default]
     Tight,
