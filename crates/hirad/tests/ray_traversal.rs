@@ -260,23 +260,29 @@ fn split_runs_test_fewer_triangles() {
     );
 }
 
+/// `n` triangles, each with its corners in a cube of side `size` around a centre drawn in the
+/// cube `[0, extent]³`.
+fn scattered_triangles(seed: u64, n: u32, extent: f32, size: f32) -> Scene {
+    let mut g = SplitMix64::new(seed);
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for i in 0..n {
+        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * extent;
+        for _ in 0..3 {
+            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * size);
+        }
+        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    scene_from(pos, tris)
+}
+
 /// Binary trees laid out with tight boxes pull inner children up into their parent's lanes
 /// (up to eight): a ray visits far fewer nodes than through the tree's own two-lane nodes,
 /// with the same answers as brute force (closest hits too).
 #[test]
 fn binary_trees_are_collapsed_into_wide_nodes() {
     // Small triangles, so that few cross a k-d split plane and stay at inner nodes.
-    let mut g = SplitMix64::new(11);
-    let mut pos = Vec::new();
-    let mut tris = Vec::new();
-    for i in 0..3000u32 {
-        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * 4.0;
-        for _ in 0..3 {
-            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * 0.1);
-        }
-        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
-    }
-    let scene = scene_from(pos, tris);
+    let scene = scattered_triangles(11, 3000, 4.0, 0.1);
     let segs = random_segments(&scene, 12, 2000);
     for strategy in [Strategy::Kdt, Strategy::Obt, Strategy::Okdt] {
         let tree = ClusterTree::build(&scene, strategy, &ClusterConfig::default());
@@ -305,17 +311,7 @@ fn binary_trees_are_collapsed_into_wide_nodes() {
 /// nodes, without pulling children up).
 #[test]
 fn a_node_with_two_parents_is_laid_out_safely() {
-    let mut g = SplitMix64::new(5);
-    let mut pos = Vec::new();
-    let mut tris = Vec::new();
-    for i in 0..12u32 {
-        let c = Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) * 2.0;
-        for _ in 0..3 {
-            pos.push(c + (Vec3::new(g.next_f32(), g.next_f32(), g.next_f32()) - 0.5) * 0.8);
-        }
-        tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
-    }
-    let scene = scene_from(pos, tris);
+    let scene = scattered_triangles(5, 12, 2.0, 0.8);
     // (first child, children, surface or none) per node; surface i is listed at index i.
     let shape: [(u32, u32, Option<u32>); 15] = [
         (1, 8, Some(0)),
