@@ -136,6 +136,14 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
     assert!((sum_err / sum_want).abs() < 0.004);
 }
 
+/// `mesh` with radiosity `b` at every vertex.
+fn uniform(mesh: &ColoredMesh, b: f32) -> ColoredMesh {
+    ColoredMesh {
+        colors: vec![Vec3::splat(b); mesh.colors.len()],
+        ..mesh.clone()
+    }
+}
+
 fn solved(name: &str, preset: &str) -> (Scene, ColoredMesh) {
     let scene = Scene::load(name, &SceneOptions::default()).unwrap();
     let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
@@ -158,10 +166,7 @@ fn furnace_gather_returns_the_analytic_radiosity() {
         ..CameraView::from_camera(&scene.default_camera())
     };
     let want = 2.0 / PI;
-    let exact = ColoredMesh {
-        colors: vec![Vec3::splat(2.0); mesh.colors.len()],
-        ..mesh.clone()
-    };
+    let exact = uniform(&mesh, 2.0);
     // The gather reads ρ(B − E)/π, a quarter of the radiance, from the solution: where the
     // per-vertex image of the solver's mesh is off by e (centroid vertices of the mean-keeping
     // fit are off by up to 70% on this coarse solve), the gather is off by about e/4.
@@ -243,11 +248,7 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
         height: 16,
         ..CameraView::from_camera(&scene.default_camera())
     };
-    let with = |b: f32| ColoredMesh {
-        colors: vec![Vec3::splat(b); mesh.colors.len()],
-        ..mesh.clone()
-    };
-    let (emission_only, exact) = (with(1.0), with(2.0));
+    let (emission_only, exact) = (uniform(&mesh, 1.0), uniform(&mesh, 2.0));
     // Bright factor 0.5 samples every element by area too: the near bounce's estimate is
     // weighted against those samples, or light would be counted twice.
     for (what, m, near, bright, want) in [

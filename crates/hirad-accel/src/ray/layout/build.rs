@@ -150,10 +150,8 @@ impl Layout {
         }
         // Nodes pulled up are not laid out (their own runs are lanes of the node above).
         let mut laid = vec![false; n];
+        laid[0] = true;
         for &id in &order {
-            if id == 0 || laid[id as usize] {
-                laid[id as usize] = true;
-            }
             if laid[id as usize] {
                 for lane in &lanes[id as usize] {
                     if let Lane::Node(c) = *lane {
@@ -169,13 +167,6 @@ impl Layout {
         let mut ng = 0usize;
         // Packets and wide packets allocated so far.
         let mut np = [0usize; 2];
-        // First packet of a run of `t` triangles, in the array its length selects.
-        let alloc = |np: &mut [usize; 2], t: usize| {
-            let (k, size) = if t >= WIDE_MIN { (1, 16) } else { (0, 4) };
-            let start = np[k];
-            np[k] += t.div_ceil(size);
-            start
-        };
         let mut run_pos = vec![0usize; n];
         for &id in &order {
             let i = id as usize;
@@ -186,16 +177,7 @@ impl Layout {
                     Some(rt) => {
                         sub_pos[i] = ng;
                         ng += rt.subs.len();
-                        let mut set = |p: &mut Piece| {
-                            p.r = match p.sub {
-                                Some(j) => (sub_pos[i] + j) as u32,
-                                None => {
-                                    leaf_ref(alloc(&mut np, p.range.len()), p.range.len()) | CHUNK
-                                }
-                            }
-                        };
-                        rt.top.iter_mut().for_each(&mut set);
-                        rt.subs.iter_mut().flatten().for_each(&mut set);
+                        place_pieces(rt, sub_pos[i], &mut np);
                     }
                     None => run_pos[i] = alloc(&mut np, own[i].len()),
                 }
@@ -214,14 +196,7 @@ impl Layout {
                 ng += (c + rt.top.len()).div_ceil(4);
                 sub_pos[i] = ng;
                 ng += rt.subs.len();
-                let mut set = |p: &mut Piece| {
-                    p.r = match p.sub {
-                        Some(j) => (sub_pos[i] + j) as u32,
-                        None => leaf_ref(alloc(&mut np, p.range.len()), p.range.len()) | CHUNK,
-                    }
-                };
-                rt.top.iter_mut().for_each(&mut set);
-                rt.subs.iter_mut().flatten().for_each(&mut set);
+                place_pieces(rt, sub_pos[i], &mut np);
                 continue;
             }
             runs[i] = None;
@@ -290,9 +265,10 @@ impl Layout {
                     }
                 });
                 // The box, reference and face bits of a piece of the node's own run.
-                let lane_of = |p: &Piece| piece_lane(scene, ids, p);
                 let rt = runs[i].as_ref();
-                let top = rt.into_iter().flat_map(|rt| rt.top.iter().map(lane_of));
+                let top = rt
+                    .into_iter()
+                    .flat_map(|rt| rt.top.iter().map(|p| piece_lane(scene, ids, p)));
                 let first = rt.is_some() && eager[i];
                 let mut lanes = 0usize;
                 for (j, (b, cr, f)) in children.chain(top).enumerate() {
@@ -367,9 +343,9 @@ enum Lane {
 /// has triangles of its own, a lane holding them (at most [`LEAF_MAX_TRIS`]) or, when they
 /// were split into pieces, the lanes of its top pieces. Nodes passed through and nodes whose
 /// run is split into pieces keep their children. The same triangles, each behind the box of
-/// its node's run or piece, but for a node whose
-/// lanes fill its last group: its own run is tested whenever it is visited (keeping a lane
-/// free for it instead was no faster on `soup`, `docs/perf-log.md` 2026-12-05 (20)).
+/// its node's run or piece, but for a node whose lanes fill its last group: its own run is
+/// tested whenever it is visited (keeping a lane free for it instead was no faster on `soup`,
+/// `docs/perf-log.md` 2026-12-05 (20)).
 fn collapse(
     order: &[u32],
     kids: &[Vec<u32>],
@@ -423,6 +399,26 @@ fn collapse(
         lanes[i] = l;
     }
     lanes
+}
+
+/// First packet of a run of `t` triangles, in the array its length selects (`np`: packets
+/// and wide packets allocated so far).
+fn alloc(np: &mut [usize; 2], t: usize) -> usize {
+    let (k, size) = if t >= WIDE_MIN { (1, 16) } else { (0, 4) };
+    let start = np[k];
+    np[k] += t.div_ceil(size);
+    start
+}
+
+/// References of the pieces of a split run: its sub-pieces' groups from `sub` on, its chunks
+/// in packets allocated from `np`.
+fn place_pieces(rt: &mut RunTree, sub: usize, np: &mut [usize; 2]) {
+    for p in rt.top.iter_mut().chain(rt.subs.iter_mut().flatten()) {
+        p.r = match p.sub {
+            Some(j) => (sub + j) as u32,
+            None => leaf_ref(alloc(np, p.range.len()), p.range.len()) | CHUNK,
+        }
+    }
 }
 
 /// Store the triangles `ids` of a run from packet `at` on (in the array its length selects).

@@ -37,14 +37,14 @@ pub enum Boxes {
     /// by the surface area heuristic, down to chunks of at most 16), where a cost model says
     /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
     /// run would have taken, so every triangle is still reached only behind its node's box;
-    /// a ray tests only the pieces whose boxes it hits (the many
-    /// surfaces a `kdt` node keeps because they cross its split plane, a large leaf). Inner
-    /// children are pulled up into their parent's lanes while the parent holds at most eight
-    /// (one lane kept for its own run), the inner child of largest box first, as wide BVHs
-    /// collapse binary ones: a child pulled up is not visited as a node, its children take
-    /// its lane and its own triangles a lane of their own behind their box (at most 31), or
-    /// the lanes of their top pieces when they were split. A ray visits about half as many nodes of the binary `kdt`, `obt` and
-    /// `okdt` trees, whose nodes held two lanes.
+    /// a ray tests only the pieces whose boxes it hits (the many surfaces a `kdt` node keeps
+    /// because they cross its split plane, a large leaf). Inner children are pulled up into
+    /// their parent's lanes while the parent holds at most eight (one lane kept for its own
+    /// run), the inner child of largest box first, as wide BVHs collapse binary ones: a child
+    /// pulled up is not visited as a node, its children take its lane and its own triangles a
+    /// lane of their own behind their box (at most 31), or the lanes of their top pieces when
+    /// they were split. A ray visits half as many nodes of the binary `kdt`, `obt` and `okdt`
+    /// trees or fewer, whose nodes held two lanes.
     #[default]
     Tight,
     /// Every node's box shrunk to what lies below it (the union of its own triangles' boxes
@@ -74,8 +74,8 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 /// - A node with children (or with more triangles than a leaf reference can hold) owns
 ///   `⌈lanes/4⌉` consecutive [`Group`]s of 128 bytes (its children's, or with tight boxes
 ///   those left after inner children were pulled up into it; a node pulled up owns none):
-///   the boxes of up to four children in
-///   structure-of-arrays form (one 4-wide SIMD slab test checks all four), the children's
+///   the boxes of up to four children in structure-of-arrays form (one 4-wide SIMD slab test
+///   checks all four), the children's
 ///   references, the node's own triangle run (surfaces attached at inner nodes) and, in the
 ///   first group, its number of groups.
 /// - A leaf is not stored as a node at all: its reference in the parent's group encodes its
