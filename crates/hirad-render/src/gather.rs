@@ -7,13 +7,16 @@
 //! not counted twice); [`Gatherer`] gives the details. The solution is the mesh `solve` writes
 //! (`solution.glb`), matched to the scene's surfaces by [`SolutionLookup`]: a `.glb` and the
 //! scene are enough, nothing is solved again. Bright solution triangles are also sampled by area
-//! ([`GatherOptions::bright`]), and gather hits near the shading point get one more bounce
-//! ([`GatherOptions::near`]).
+//! ([`GatherOptions::bright`]), gather hits near the shading point get one more bounce
+//! ([`GatherOptions::near`]), and an irradiance cache can stand for the gather rays where the
+//! indirect light is smooth ([`GatherOptions::cache`]).
 //!
-//! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`; rows are
-//! rendered in parallel and the image does not depend on the number of threads.
+//! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`, each
+//! cache point from one of its own; rows are rendered in parallel and the image does not
+//! depend on the number of threads.
 
 mod bright;
+mod cache;
 mod lookup;
 
 pub use lookup::{Lookup, SolutionLookup};
@@ -22,6 +25,7 @@ use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
 use crate::sample::{cosine_sample, power_heuristic, surface_eps, Lights};
 use bright::Bright;
+use cache::Cache;
 use glam::{DVec3, Vec3};
 use hirad_accel::ray::RayCaster;
 use hirad_core::progress::Progress;
@@ -37,7 +41,8 @@ use std::sync::atomic::AtomicBool;
 /// Settings of the final gather.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GatherOptions {
-    /// Samples per pixel: camera rays, light samples and gather rays (one each per sample).
+    /// Samples per pixel: camera rays, light samples and gather rays (one each per sample; a
+    /// sample that takes its indirect light from the irradiance cache casts no gather ray).
     pub rays: u32,
     /// Seed of the per-pixel generators.
     pub seed: u64,
@@ -55,6 +60,11 @@ pub struct GatherOptions {
     /// the element's radiosity, which stands for the element as seen from afar (corners,
     /// contact); 0: off.
     pub near: f32,
+    /// Irradiance cache: the indirect light of one point per block of this many pixels
+    /// squared, gathered with the block's rays and interpolated where valid (`gather/cache.rs`);
+    /// 0: every sample gathers its own.
+    #[serde(default)]
+    pub cache: u32,
 }
 
 impl Default for GatherOptions {
@@ -66,6 +76,7 @@ impl Default for GatherOptions {
             lookup: Lookup::Element,
             bright: 16.0,
             near: 2.0,
+            cache: 2,
         }
     }
 }
@@ -88,6 +99,12 @@ pub struct GatherStats {
     pub near: u64,
     /// Solution triangles sampled as bright elements ([`GatherOptions::bright`]).
     pub bright_triangles: u64,
+    /// Points of the irradiance cache ([`GatherOptions::cache`]).
+    #[serde(default)]
+    pub cache_points: u64,
+    /// Pixel samples whose indirect light came from the cache.
+    #[serde(default)]
+    pub cached: u64,
     /// Wall time of the image, seconds (without preparing the solution).
     pub seconds: f64,
 }
@@ -128,6 +145,19 @@ struct Counts {
     lookups: u64,
     misses: u64,
     near: u64,
+    cached: u64,
+}
+
+impl Counts {
+    fn add(&mut self, o: &Counts) {
+        self.camera += o.camera;
+        self.gather += o.gather;
+        self.shadow += o.shadow;
+        self.lookups += o.lookups;
+        self.misses += o.misses;
+        self.near += o.near;
+        self.cached += o.cached;
+    }
 }
 
 /// `(i + jitter) / n` strata of a `a × b` grid for sample `k` (samples beyond the grid are
@@ -207,10 +237,7 @@ impl<'a> Gatherer<'a> {
     }
 
     /// Radiance reflected at `x` (already offset off the surface) of normal `n` and
-    /// reflectance `rho`: ρ/π × (direct irradiance from one emitter sample `ul` and the sun +
-    /// indirect irradiance from one cosine-weighted gather ray `ud`, and one sample of the bright
-    /// elements). At `depth` 0 a near hit of the gather ray ([`GatherOptions::near`]) is shaded
-    /// by this function again at depth 1, with samples drawn from `rng`.
+    /// reflectance `rho`: [`Self::direct`] + ρ × [`Self::incident`].
     #[allow(clippy::too_many_arguments)]
     fn reflected(
         &self,
@@ -223,6 +250,24 @@ impl<'a> Gatherer<'a> {
         ub: (f64, (f32, f32)),
         depth: u32,
         rng: &mut SplitMix64,
+        cnt: &mut Counts,
+    ) -> Vec3 {
+        let (l, b, _) = self.incident(x, n, ud, ub, depth, true, rng, cnt);
+        self.direct(x, n, rho, upick, ul, true, cnt) + rho * l + rho * b
+    }
+
+    /// Direct light reflected at `x` of normal `n` and reflectance `rho`: ρ/π × the irradiance
+    /// from one emitter sample `ul` and the sun. With `mis` the emitter sample is weighted
+    /// against the gather rays' emission hits, without it it stands for all direct light.
+    #[allow(clippy::too_many_arguments)]
+    fn direct(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        rho: Vec3,
+        upick: f64,
+        ul: (f32, f32),
+        mis: bool,
         cnt: &mut Counts,
     ) -> Vec3 {
         let scene = self.scene;
@@ -242,7 +287,11 @@ impl<'a> Gatherer<'a> {
                     cnt.shadow += 1;
                     if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4) {
                         let pdf_light = lt.pdf_area * dist2 / cos_y;
-                        let w = power_heuristic(pdf_light, cos_x / PI);
+                        let w = if mis {
+                            power_heuristic(pdf_light, cos_x / PI)
+                        } else {
+                            1.0
+                        };
                         e += lt.emission * (cos_x * cos_y / (dist2 * lt.pdf_area) * w);
                     }
                 }
@@ -257,72 +306,118 @@ impl<'a> Gatherer<'a> {
                 }
             }
         }
-        let mut out = rho * e / PI;
+        rho * e / PI
+    }
+
+    /// One sample of the indirect light at `x` of normal `n`: the radiance of one
+    /// cosine-weighted gather ray `ud` (the solution's reflected radiosity at its hit, emission
+    /// hit weighted against the emitter sample) and one sample of the bright elements `ub`,
+    /// whose sum times ρ estimates the reflected indirect radiance; and the gather ray's hit
+    /// distance (infinite when it leaves the scene). Emission the gather ray hits counts only
+    /// with `emission` (weighted against the emitter sample at `x`). At `depth` 0 a near hit
+    /// ([`GatherOptions::near`]) is shaded by [`Self::reflected`] at depth 1, with samples
+    /// drawn from `rng`.
+    #[allow(clippy::too_many_arguments)]
+    fn incident(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        ud: (f32, f32),
+        ub: (f64, (f32, f32)),
+        depth: u32,
+        emission: bool,
+        rng: &mut SplitMix64,
+        cnt: &mut Counts,
+    ) -> (Vec3, Vec3, f32) {
+        let Some((l, t)) = self.gather_ray(x, n, ud, depth, emission, rng, cnt) else {
+            return (Vec3::ZERO, Vec3::ZERO, f32::INFINITY);
+        };
+        let bright = match &self.bright {
+            Some(br) => self.bright_sample(x, n, br, ub, cnt),
+            None => Vec3::ZERO,
+        };
+        (l, bright, t)
+    }
+
+    /// The gather ray of [`Self::incident`]: its radiance and hit distance; `None` for a
+    /// direction in the surface's plane.
+    #[allow(clippy::too_many_arguments)]
+    fn gather_ray(
+        &self,
+        x: Vec3,
+        n: Vec3,
+        ud: (f32, f32),
+        depth: u32,
+        emission: bool,
+        rng: &mut SplitMix64,
+        cnt: &mut Counts,
+    ) -> Option<(Vec3, f32)> {
+        let scene = self.scene;
+        let mut out = Vec3::ZERO;
         // Indirect: the cosine-weighted estimator of ρ/π ∫ L cos dω is ρ·L.
         let (d, cos) = cosine_sample(n, ud.0, ud.1);
         if cos <= 0.0 {
-            return out;
+            return None;
         }
         cnt.gather += 1;
-        let l_in = match self.caster.closest(x, d, 0.0, f32::INFINITY) {
-            None => match scene.sky {
-                Some(sky) if d.dot(self.up) > 0.0 => sky,
-                _ => Vec3::ZERO,
-            },
-            Some(h) => {
-                let tri = h.tri as usize;
-                let ng = scene.normals[tri];
-                let front = ng.dot(d) < 0.0;
-                if !front && !scene.has_back(tri, self.opts.two_sided) {
-                    Vec3::ZERO
-                } else {
-                    let mat = scene.material_of(tri);
-                    let ns = if front { ng } else { -ng };
-                    let q = x + d * h.t;
-                    // Emission hit by the gather ray: its multiple-importance weight against
-                    // the emitter sample.
-                    let mut l = Vec3::ZERO;
-                    if front && mat.is_emitter() {
-                        let pdf_light = self.lights.pdf_area[tri] * h.t * h.t / -ng.dot(d);
-                        l += mat.emission * power_heuristic(cos / PI, pdf_light);
-                    }
-                    // The solution's reflected radiosity there, weighted against the bright
-                    // elements' sample when it is one of them.
-                    if let Some((b, pdf_b, area)) = self.radiosity(q, ns, cnt) {
-                        let emitted = if front { mat.emission * PI } else { Vec3::ZERO };
-                        let near = depth == 0 && h.t * h.t < self.near2 * area;
-                        let w = if pdf_b > 0.0 {
-                            let pdf_sa = pdf_b * h.t * h.t / ns.dot(d).abs().max(1e-12);
-                            power_heuristic(cos / PI, pdf_sa)
-                        } else {
-                            1.0
-                        };
-                        if near && mat.rho.max_element() > 0.0 {
-                            cnt.near += 1;
-                            let qo = q + ns * self.eps;
-                            let r2 = |rng: &mut SplitMix64| (rng.next_f32(), rng.next_f32());
-                            let (upick2, ul2, ud2) = (rng.next_f64(), r2(rng), r2(rng));
-                            let ub2 = (rng.next_f64(), r2(rng));
-                            l += self
-                                .reflected(qo, ns, mat.rho, upick2, ul2, ud2, ub2, 1, rng, cnt)
-                                * w;
-                        } else {
-                            l += (b - emitted).max(Vec3::ZERO) / PI * w;
-                        }
-                    }
-                    l
+        let Some(h) = self.caster.closest(x, d, 0.0, f32::INFINITY) else {
+            if let Some(sky) = scene.sky {
+                if d.dot(self.up) > 0.0 {
+                    out += sky;
                 }
             }
+            return Some((out, f32::INFINITY));
         };
-        out += rho * l_in;
-        if let Some(br) = &self.bright {
-            out += rho * self.bright_sample(x, n, br, ub, cnt);
+        let tri = h.tri as usize;
+        let ng = scene.normals[tri];
+        let front = ng.dot(d) < 0.0;
+        if !front && !scene.has_back(tri, self.opts.two_sided) {
+            return Some((out, h.t));
         }
-        out
+        let mat = scene.material_of(tri);
+        let ns = if front { ng } else { -ng };
+        let q = x + d * h.t;
+        // Emission hit by the gather ray: its multiple-importance weight against the emitter
+        // sample.
+        if emission && front && mat.is_emitter() {
+            let pdf_light = self.lights.pdf_area[tri] * h.t * h.t / -ng.dot(d);
+            out += mat.emission * power_heuristic(cos / PI, pdf_light);
+        }
+        // The solution's reflected radiosity there, weighted against the bright elements'
+        // sample when it is one of them.
+        if let Some((b, pdf_b, area)) = self.radiosity(q, ns, cnt) {
+            let emitted = if front { mat.emission * PI } else { Vec3::ZERO };
+            let near = depth == 0 && h.t * h.t < self.near2 * area;
+            let w = if pdf_b > 0.0 {
+                let pdf_sa = pdf_b * h.t * h.t / ns.dot(d).abs().max(1e-12);
+                power_heuristic(cos / PI, pdf_sa)
+            } else {
+                1.0
+            };
+            if near && mat.rho.max_element() > 0.0 {
+                cnt.near += 1;
+                let qo = q + ns * self.eps;
+                let r2 = |rng: &mut SplitMix64| (rng.next_f32(), rng.next_f32());
+                let (upick2, ul2, ud2) = (rng.next_f64(), r2(rng), r2(rng));
+                let ub2 = (rng.next_f64(), r2(rng));
+                out += self.reflected(qo, ns, mat.rho, upick2, ul2, ud2, ub2, 1, rng, cnt) * w;
+            } else {
+                out += (b - emitted).max(Vec3::ZERO) / PI * w;
+            }
+        }
+        Some((out, h.t))
     }
 
     /// Pixel `(x, y)` of an image `w` pixels wide.
-    fn pixel(&self, frame: &CameraFrame, x: usize, y: usize, w: usize, cnt: &mut Counts) -> Vec3 {
+    fn pixel(
+        &self,
+        frame: &CameraFrame,
+        cache: Option<&Cache>,
+        x: usize,
+        y: usize,
+        w: usize,
+        cnt: &mut Counts,
+    ) -> Vec3 {
         let scene = self.scene;
         let mut rng = SplitMix64::for_item(self.opts.seed, (y * w + x) as u64);
         let n = self.opts.rays;
@@ -374,8 +469,16 @@ impl<'a> Gatherer<'a> {
             }
             if mat.rho.max_element() > 0.0 {
                 let ns = if front { ng } else { -ng };
-                let p = frame.eye + d * h.t + ns * self.eps;
-                l += self.reflected(p, ns, mat.rho, upick, ul, ud, ub, 0, &mut rng, cnt);
+                let q = frame.eye + d * h.t;
+                let p = q + ns * self.eps;
+                let (sx, sy) = (x as f32 + jx, y as f32 + jy);
+                l += match cache.and_then(|c| c.lookup(q, ns, sx, sy)) {
+                    Some(li) => {
+                        cnt.cached += 1;
+                        self.direct(p, ns, mat.rho, upick, ul, false, cnt) + mat.rho * li
+                    }
+                    None => self.reflected(p, ns, mat.rho, upick, ul, ud, ub, 0, &mut rng, cnt),
+                };
             }
             sum += l.as_dvec3();
         }
@@ -409,10 +512,22 @@ impl<'a> Gatherer<'a> {
         let frame = view.frame();
         let w = view.width as usize;
         let mut img = Image::new(view.width, view.height, Vec3::ZERO);
-        let counts: Vec<Counts> =
+        let mut pre = Counts::default();
+        let cache = (self.opts.cache > 0).then(|| {
+            Cache::build(
+                self,
+                &frame,
+                view.width,
+                view.height,
+                self.opts.cache,
+                &mut pre,
+            )
+        });
+        let mut counts: Vec<Counts> =
             render_rows(&mut img, "gather", progress, cancel, |x, y, cnt| {
-                self.pixel(&frame, x, y, w, cnt)
+                self.pixel(&frame, cache.as_ref(), x, y, w, cnt)
             })?;
+        counts.push(pre);
         let sum = |f: fn(&Counts) -> u64| counts.iter().map(f).sum::<u64>();
         let stats = GatherStats {
             camera_rays: sum(|c| c.camera),
@@ -422,14 +537,18 @@ impl<'a> Gatherer<'a> {
             lookup_misses: sum(|c| c.misses),
             near: sum(|c| c.near),
             bright_triangles: self.bright.as_ref().map_or(0, |b| b.tris.len() as u64),
+            cache_points: cache.as_ref().map_or(0, |c| c.len() as u64),
+            cached: sum(|c| c.cached),
             seconds: t0.elapsed().as_secs_f64(),
         };
         tracing::info!(
-            "gather: {} camera rays, {} gather rays ({} near), {} shadow rays, {} look-ups ({} missed) in \
-             {:.2} s",
+            "gather: {} camera rays, {} gather rays ({} near), {} cache points ({} samples cached), \
+             {} shadow rays, {} look-ups ({} missed) in {:.2} s",
             stats.camera_rays,
             stats.gather_rays,
             stats.near,
+            stats.cache_points,
+            stats.cached,
             stats.shadow_rays,
             stats.lookups,
             stats.lookup_misses,

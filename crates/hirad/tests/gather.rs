@@ -8,14 +8,23 @@ use hirad::progress::NoProgress;
 use hirad::radiosity::{output, solve, SolverConfig};
 use hirad::ray::RayCaster;
 use hirad::render::{
-    render_solution, CameraView, GatherOptions, Gatherer, Image, Lookup, RasterOptions,
-    SolutionLookup,
+    render_solution, CameraView, GatherOptions, GatherStats, Gatherer, Image, Lookup,
+    RasterOptions, SolutionLookup,
 };
 use hirad::scene::export::ColoredMesh;
 use hirad::scene::{Material, RawScene, Scene, SceneOptions, UpAxis};
 use std::f64::consts::PI;
 
 fn gather(scene: &Scene, mesh: &ColoredMesh, view: &CameraView, opts: &GatherOptions) -> Image {
+    gather_stats(scene, mesh, view, opts).0
+}
+
+fn gather_stats(
+    scene: &Scene,
+    mesh: &ColoredMesh,
+    view: &CameraView,
+    opts: &GatherOptions,
+) -> (Image, GatherStats) {
     let tree = ClusterTree::build(scene, Strategy::Sah, &ClusterConfig::default());
     let caster = RayCaster::new(scene, &tree);
     let sol = SolutionLookup::new(mesh, scene, &caster, opts.lookup).unwrap();
@@ -23,7 +32,7 @@ fn gather(scene: &Scene, mesh: &ColoredMesh, view: &CameraView, opts: &GatherOpt
         .render(view, &NoProgress, None)
         .unwrap();
     assert_eq!(stats.lookup_misses, 0, "every gather hit finds its element");
-    img
+    (img, stats)
 }
 
 /// Irradiance at `x` (normal `n`) from a polygon of uniform radiance `l` (Lambert's
@@ -39,19 +48,24 @@ fn polygon_irradiance(x: Vec3, n: Vec3, poly: &[Vec3], l: f64) -> f64 {
     0.5 * l * s.abs()
 }
 
-/// A 40 × 40 floor z = 0 (ρ = 0.5, facing +z) under a 1 × 0.6 quad light at z = 1 facing down
-/// (L_e = 2, ρ = 0): nothing else, so a floor point's radiance is ρ/π · E(x) exactly, and the
-/// solution (any values on the floor, the light's own exitance on the light) adds nothing
-/// through the gather rays.
-#[test]
-fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
-    let light = [
+/// A 40 × 40 floor z = 0 (ρ = 0.5, facing +z) under a 1 × 0.6 quad at z = 1 facing down
+/// (ρ = 0) of emitted radiance `le` whose solution reads radiosity `b` (the floor's reads 0,
+/// which no gather ray from the floor sees; a bright quad is sampled by area): nothing else, so a floor point's radiance is
+/// ρ/π · E(x), E the irradiance from a polygon of radiance L_e + (b − π L_e)/π. Gathers a view
+/// of the floor; returns the gather's statistics, the worst pixel's error relative to its own
+/// value and to the brightest pixel's, and the error of the mean.
+fn quad_over_floor(
+    le: f32,
+    b: f32,
+    opts: &GatherOptions,
+    size: (u32, u32),
+) -> (GatherStats, f64, f64, f64) {
+    let quad = [
         Vec3::new(-0.5, -0.3, 1.0),
         Vec3::new(-0.5, 0.3, 1.0),
         Vec3::new(0.5, 0.3, 1.0),
         Vec3::new(0.5, -0.3, 1.0),
     ];
-    let le = 2.0f32;
     let rho = 0.5f32;
     let mut positions = vec![
         Vec3::new(-20.0, -20.0, 0.0),
@@ -59,11 +73,11 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
         Vec3::new(20.0, 20.0, 0.0),
         Vec3::new(-20.0, 20.0, 0.0),
     ];
-    positions.extend_from_slice(&light);
-    // Light corners in this order face down (-z).
+    positions.extend_from_slice(&quad);
+    // Quad corners in this order face down (-z).
     let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
     let raw = RawScene {
-        name: "quad light".into(),
+        name: "quad over a floor".into(),
         positions: positions.clone(),
         triangles: triangles.clone(),
         tri_material: vec![0, 0, 1, 1],
@@ -71,7 +85,7 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
         materials: vec![
             Material::diffuse("floor", Vec3::splat(rho)),
             Material {
-                name: "light".into(),
+                name: "quad".into(),
                 rho: Vec3::ZERO,
                 emission: Vec3::splat(le),
             },
@@ -80,9 +94,9 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
         ..Default::default()
     };
     let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
-    assert!(scene.normals[2].z < -0.99, "the light faces down");
-    let mut colors = vec![Vec3::splat(0.7); 4];
-    colors.extend([Vec3::splat(std::f32::consts::PI * le); 4]);
+    assert!(scene.normals[2].z < -0.99, "the quad faces down");
+    let mut colors = vec![Vec3::ZERO; 4];
+    colors.extend([Vec3::splat(b); 4]);
     let mesh = ColoredMesh {
         positions,
         triangles,
@@ -93,17 +107,14 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
         target: Vec3::new(0.5, 0.2, 0.0),
         up: Vec3::Y,
         fov_deg: 70.0,
-        width: 10,
-        height: 8,
+        width: size.0,
+        height: size.1,
     };
-    let opts = GatherOptions {
-        rays: 4096,
-        seed: 7,
-        ..Default::default()
-    };
-    let img = gather(&scene, &mesh, &view, &opts);
+    let (img, stats) = gather_stats(&scene, &mesh, &view, opts);
+    let l = le as f64 + (b as f64 - PI * le as f64).max(0.0) / PI;
     let frame = view.frame();
     let (mut worst, mut sum_err, mut sum_want) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut worst_abs, mut peak) = (0.0f64, 0.0f64);
     for y in 0..view.height {
         for x in 0..view.width {
             // The pixel's mean over an 8 × 8 grid of points on the floor.
@@ -115,7 +126,7 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
                         y as f32 + (j as f32 + 0.5) / 8.0,
                     );
                     let p = frame.eye + d * (-frame.eye.z / d.z);
-                    want += rho as f64 / PI * polygon_irradiance(p, Vec3::Z, &light, le as f64);
+                    want += rho as f64 / PI * polygon_irradiance(p, Vec3::Z, &quad, l);
                 }
             }
             want /= 64.0;
@@ -123,17 +134,77 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
             assert!((got.x - got.y).abs() < 1e-6 && (got.x - got.z).abs() < 1e-6);
             let rel = (got.x as f64 - want).abs() / want;
             worst = worst.max(rel);
+            worst_abs = worst_abs.max((got.x as f64 - want).abs());
+            peak = peak.max(want);
             sum_err += got.x as f64 - want;
             sum_want += want;
         }
     }
+    let (peak_rel, mean) = (worst_abs / peak, sum_err / sum_want);
     println!(
-        "quad light: worst pixel {:.3}%, mean {:.3}%",
+        "quad over a floor, L_e {le}, B {b}, cache {}: worst pixel {:.3}% ({:.3}% of the \
+         brightest), mean {:.3}%, {} of {} samples cached",
+        opts.cache,
         100.0 * worst,
-        100.0 * sum_err / sum_want
+        100.0 * peak_rel,
+        100.0 * mean,
+        stats.cached,
+        stats.camera_rays
     );
-    assert!(worst < 0.015, "worst pixel off by {:.2}%", 100.0 * worst);
-    assert!((sum_err / sum_want).abs() < 0.004);
+    (stats, worst, peak_rel, mean)
+}
+
+/// Direct light: the quad is an emitter (L_e = 2), the solution reads its exitance there, so
+/// the gather rays add nothing; with and without the irradiance cache.
+#[test]
+fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
+    let le = 2.0f32;
+    for cache in [0, 2] {
+        let opts = GatherOptions {
+            rays: 4096,
+            seed: 7,
+            cache,
+            ..Default::default()
+        };
+        let (_, worst, _, mean) = quad_over_floor(le, std::f32::consts::PI * le, &opts, (10, 8));
+        assert!(worst < 0.015, "worst pixel off by {:.2}%", 100.0 * worst);
+        assert!(mean.abs() < 0.004, "mean off by {:.2}%", 100.0 * mean);
+    }
+}
+
+/// Indirect light: the quad emits nothing but the solution gives it B = 2π, so all the
+/// floor's light comes through the gather rays, which vary across the floor as the polygon
+/// irradiance does; the irradiance cache interpolates it, a pixel spanning 1–4 cm of floor
+/// (errors measured against the brightest pixel, as ΔE*uv weighs them against white).
+#[test]
+fn gathered_light_from_a_bright_quad_is_the_polygon_irradiance() {
+    for (cache, rays) in [(0, 4096), (2, 256), (4, 64)] {
+        let opts = GatherOptions {
+            rays,
+            seed: 5,
+            cache,
+            ..Default::default()
+        };
+        let (stats, _, peak_rel, mean) =
+            quad_over_floor(0.0, 2.0 * std::f32::consts::PI, &opts, (64, 48));
+        assert!(
+            peak_rel < 0.02,
+            "worst pixel off by {:.2}%",
+            100.0 * peak_rel
+        );
+        assert!(mean.abs() < 0.004, "mean off by {:.2}%", 100.0 * mean);
+        if cache > 0 {
+            assert!(stats.cache_points > 0);
+            assert!(
+                stats.cached > stats.camera_rays * 9 / 10,
+                "{} of {} samples cached",
+                stats.cached,
+                stats.camera_rays
+            );
+        } else {
+            assert_eq!(stats.cached, 0);
+        }
+    }
 }
 
 /// `mesh` with radiosity `b` at every vertex.
@@ -206,10 +277,13 @@ fn furnace_gather_returns_the_analytic_radiosity() {
             (Lookup::Element, 0.0),
             (Lookup::Element, 0.5),
         ] {
+            // Without the irradiance cache: its samples take direct light from the emitter
+            // samples alone, whose 1/r² spikes in the corners this small image cannot average.
             let opts = GatherOptions {
                 rays: 256,
                 lookup,
                 bright,
+                cache: 0,
                 ..Default::default()
             };
             let img = gather(&scene, m, &view, &opts);
@@ -274,6 +348,7 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
             rays: 256,
             bright,
             near,
+            cache: 0,
             ..Default::default()
         };
         let want = want / PI;
@@ -293,12 +368,12 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
 #[test]
 fn gather_is_seeded_and_thread_count_independent() {
     let (scene, mesh) = solved("cornell", "fast");
-    let view = CameraView {
-        width: 40,
-        height: 30,
-        ..CameraView::from_camera(&scene.default_camera())
-    };
-    let run = |threads: usize, seed: u64| {
+    let run = |threads: usize, seed: u64, cache: u32, (width, height): (u32, u32)| {
+        let view = CameraView {
+            width,
+            height,
+            ..CameraView::from_camera(&scene.default_camera())
+        };
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -306,16 +381,23 @@ fn gather_is_seeded_and_thread_count_independent() {
         let opts = GatherOptions {
             rays: 16,
             seed,
+            cache,
             ..Default::default()
         };
-        pool.install(|| gather(&scene, &mesh, &view, &opts))
+        pool.install(|| gather_stats(&scene, &mesh, &view, &opts))
     };
-    let a = run(1, 3);
-    let b = run(2, 3);
+    let small = (40, 30);
+    let a = run(1, 3, 0, small).0;
+    let b = run(2, 3, 0, small).0;
     assert!(a.mean().x > 0.0);
     assert_eq!(a.pixels, b.pixels);
-    assert_eq!(a.pixels, run(2, 3).pixels);
-    assert_ne!(a.pixels, run(2, 4).pixels);
+    assert_eq!(a.pixels, run(2, 3, 0, small).0.pixels);
+    assert_ne!(a.pixels, run(2, 4, 0, small).0.pixels);
+    // With the irradiance cache too, in an image whose blocks are small enough to be used.
+    let (c, stats) = run(1, 3, 2, (160, 120));
+    assert!(stats.cached > stats.camera_rays / 10, "{stats:?}");
+    assert_eq!(c.pixels, run(2, 3, 2, (160, 120)).0.pixels);
+    assert_ne!(c.pixels, run(2, 3, 0, (160, 120)).0.pixels);
 }
 
 /// A solution of another scene is refused.

@@ -315,6 +315,10 @@ pub struct GatherArgs {
     /// radiosity (0: off).
     #[arg(long, default_value_t = 2.0, value_parser = parse_factor)]
     pub gather_near: f32,
+    /// Irradiance cache: the indirect light of one point per block of N×N pixels, gathered
+    /// with the block's rays and interpolated where valid (0: every sample gathers its own).
+    #[arg(long, default_value_t = 2)]
+    pub gather_cache: u32,
 }
 
 fn parse_lookup(s: &str) -> Result<Lookup, String> {
@@ -364,6 +368,7 @@ impl GatherArgs {
             lookup: self.gather_lookup,
             bright: self.gather_bright,
             near: self.gather_near,
+            cache: self.gather_cache,
         };
         tracing::info!(
             "gather: solution matched in {prepare_seconds:.2} s ({} front, {} back triangles, \
