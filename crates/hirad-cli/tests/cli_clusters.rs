@@ -1,4 +1,5 @@
-//! `hirad clusters` end to end: JSON statistics, `--bench` samples, `--dump`, exit codes.
+//! `hirad clusters` end to end: JSON statistics, `--bench` samples, `--dump`, `--objects`,
+//! exit codes.
 
 use std::process::Command;
 
@@ -109,6 +110,40 @@ fn dump_writes_wireframes() {
     assert!(out.status.success());
     let s = std::fs::read_to_string(&ply).unwrap();
     assert!(s.starts_with("ply\n") && s.contains("element edge"));
+}
+
+#[test]
+fn objects_are_written_coloured_by_object() {
+    // objsoup's eleven tessellated objects, each in a colour of its own.
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("objects.ply");
+    let v = json(&[
+        "clusters",
+        "objsoup:2000",
+        "--clustering",
+        "proxi",
+        "--objects",
+        p.to_str().unwrap(),
+        "--json",
+        "-q",
+    ]);
+    let m = hirad::scene::export::read_colored_mesh(&p).unwrap();
+    assert_eq!(m.triangles.len() as u64, v["triangles"].as_u64().unwrap());
+    let mut colours: Vec<[u32; 3]> = m
+        .colors
+        .iter()
+        .map(|c| c.to_array().map(f32::to_bits))
+        .collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert_eq!(colours.len(), 11);
+    // A format it cannot write is refused before any work.
+    let out = hirad()
+        .args(["clusters", "objsoup:2000", "-q", "--objects", "objects.txt"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("objects.txt"));
 }
 
 #[test]

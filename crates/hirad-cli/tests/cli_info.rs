@@ -76,6 +76,32 @@ fn info_json_on_a_real_scene() {
 }
 
 #[test]
+fn every_example_scene_loads_lit_with_a_camera() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().and_then(|x| x.to_str()) != Some("toml") {
+            continue;
+        }
+        n += 1;
+        let v = json_ok(hirad().arg("info").arg(&p).arg("--json"));
+        let power: f64 = (0..3)
+            .map(|c| v["emitted_power"][c].as_f64().unwrap())
+            .sum();
+        let lit = power > 0.0 || !v["sun"].is_null() || !v["sky"].is_null();
+        assert!(lit, "{}: no light", p.display());
+        assert!(v["triangles"].as_u64().unwrap() > 0, "{}", p.display());
+        assert!(
+            !v["cameras"].as_array().unwrap().is_empty(),
+            "{}: no camera",
+            p.display()
+        );
+    }
+    assert!(n >= 4, "{} scene files", n);
+}
+
+#[test]
 fn scene_export_then_info() {
     let d = tempfile::tempdir().unwrap();
     for ext in ["obj", "glb"] {

@@ -17,6 +17,7 @@
 use super::{proxi, BuildNode, BuildTree, ClusterConfig, Prims};
 use glam::{DVec3, Vec3};
 use hirad_core::geom::Aabb;
+use hirad_scene::export::ColoredMesh;
 use rayon::prelude::*;
 
 /// Weld tolerance as a fraction of the scene's bounding-box diagonal.
@@ -316,6 +317,45 @@ pub fn reconstruct(prims: &Prims) -> Reconstruction {
         patch,
         num_patches,
     }
+}
+
+/// A distinct colour of object `k` (hues by the golden ratio, linear RGB in (0, 1)).
+pub fn object_color(k: u32) -> Vec3 {
+    let h = (k as f64 * 0.618_033_988_749_895).fract() * 6.0;
+    let (s, v) = (0.65, if k.is_multiple_of(2) { 0.85 } else { 0.6 });
+    let f = h.fract();
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    let (r, g, b) = match h as u32 {
+        0 => (v, t, p),
+        1 => (q, v, p),
+        2 => (p, v, t),
+        3 => (p, q, v),
+        4 => (t, p, v),
+        _ => (v, p, q),
+    };
+    // The sRGB transfer inverted, so that the picture shows these hues.
+    let lin = |c: f64| c.powf(2.2) as f32;
+    Vec3::new(lin(r), lin(g), lin(b))
+}
+
+/// The surfaces coloured by the object `rec` found them in ([`object_color`]), every
+/// triangle with vertices of its own (`hirad clusters --objects`).
+pub fn object_mesh(prims: &Prims, rec: &Reconstruction) -> ColoredMesh {
+    let mut m = ColoredMesh {
+        positions: Vec::with_capacity(3 * prims.triangles.len()),
+        triangles: Vec::with_capacity(prims.triangles.len()),
+        colors: Vec::with_capacity(3 * prims.triangles.len()),
+    };
+    for (t, tri) in prims.triangles.iter().enumerate() {
+        let base = m.positions.len() as u32;
+        let c = object_color(rec.object[t]);
+        for &v in tri {
+            m.positions.push(prims.positions[v as usize]);
+            m.colors.push(c);
+        }
+        m.triangles.push([base, base + 1, base + 2]);
+    }
+    m
 }
 
 /// One surface inside an object's top-down build.

@@ -1,5 +1,6 @@
 //! `hirad clusters SCENE`: build cluster hierarchies, time them and print their statistics
-//! (`spec/clustering.md`); `--dump` writes the boxes as a wireframe.
+//! (`spec/clustering.md`); `--dump` writes the boxes as a wireframe, `--objects` the objects
+//! `objr` recovers as a coloured mesh.
 
 use crate::progress::Bars;
 use crate::Global;
@@ -40,6 +41,11 @@ pub struct Args {
     /// Depth of the boxes to dump, or `all`.
     #[arg(long, default_value = "all")]
     pub level: String,
+    /// Write the objects `objr` recovers as the scene's triangles coloured by object (.ply,
+    /// .glb or .obj); `hirad render FILE --scene SCENE --image objects.png` draws them
+    /// [default: none].
+    #[arg(long)]
+    pub objects: Option<PathBuf>,
 }
 
 /// One strategy's row of the report.
@@ -129,6 +135,18 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     if let Some(p) = &args.dump {
         dump::Format::of_path(p)?;
     }
+    if let Some(p) = &args.objects {
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
+            return Err(config_error(format!(
+                "{}: --objects writes .ply, .glb or .obj",
+                p.display()
+            )));
+        }
+    }
 
     let scene = super::load_scene(&args.scene, &args.load.options())?;
     let t0 = Instant::now();
@@ -183,6 +201,17 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         });
     }
     bars.finish();
+    if let Some(p) = &args.objects {
+        let rec = hirad::cluster::objr::reconstruct(&prims);
+        let mesh = hirad::cluster::objr::object_mesh(&prims, &rec);
+        hirad::scene::export::write_colored_mesh_up(p, &mesh, scene.up)?;
+        tracing::info!(
+            "wrote {} objects ({} triangles) to {}",
+            rec.num_objects,
+            mesh.triangles.len(),
+            p.display()
+        );
+    }
 
     if let Some(p) = rows
         .iter()
