@@ -1,19 +1,20 @@
 //! Irradiance cache of the final gather ([`super::GatherOptions::cache`]): the indirect light
 //! of a grid of points, at the corners of `S × S` blocks of pixels, each gathered with the rays
 //! of a whole block, then interpolated where the pixels' samples land close to them (after
-//! Ward, Rubinstein and Clear 1988). A gather ray's noise is large on smooth walls and the indirect light there
-//! varies slowly, so one well-sampled point serves its neighbours; near corners, contacts and
-//! silhouettes no point is valid and the sample gathers on its own as before. The points do
-//! not count the emission their rays hit: a sample that takes them has its direct light from
-//! the emitter sample alone (multiple importance weights hold only at one point).
+//! Ward, Rubinstein and Clear 1988). A gather ray's noise is large on smooth walls and the
+//! indirect light there varies slowly, so one well-sampled point serves its neighbours; near
+//! corners, contacts and silhouettes no point is valid and the sample gathers on its own as
+//! before. The points do not count the emission their rays hit: a sample that takes them has
+//! its direct light from the emitter sample alone (multiple importance weights hold only at
+//! one point).
 //!
 //! A point's validity radius R is the harmonic mean distance of its gather rays' hits (rays
-//! that leave the scene say nothing about it), at most the world size of [`REACH`] blocks at
-//! the point. A sample at `x` of normal `n` takes the corners of its block whose Ward error
-//! `|x − p|/R + √(1 − n·nₚ)` is below [`ACCURACY`] and that `x` does not lie behind, with
-//! bilinear weights in the image renormalised over the valid corners: exact where the light
-//! varies linearly across a block whose corners are all valid, which Ward's inverse-error
-//! weights are not.
+//! that leave the scene say nothing about it), capped so that no sample farther than [`REACH`]
+//! blocks (their world size at the point) is served by it. A sample at `x` of normal `n` takes
+//! the corners of its block whose Ward error `|x − p|/R + √(1 − n·nₚ)` is below [`ACCURACY`]
+//! and that `x` does not lie behind, with bilinear weights in the image renormalised over the
+//! valid corners: exact where the light varies linearly across a block whose corners are all
+//! valid, which Ward's inverse-error weights are not.
 
 use super::{stratum, Counts, Gatherer};
 use crate::camera::CameraFrame;
@@ -23,7 +24,7 @@ use rayon::prelude::*;
 
 /// Largest Ward error of a point used for a sample (pbrt-v2's irradiance cache uses 0.2).
 pub(super) const ACCURACY: f32 = 0.2;
-/// A point's validity radius is at most the world size of this many blocks at the point.
+/// A point serves no sample farther than the world size of this many blocks at the point.
 pub(super) const REACH: f32 = 2.0;
 /// Mixed into the seed of the points' generators (the pixels' generators use the seed alone).
 const SEED_TAG: u64 = 0x4952_5241_4443_4143;
