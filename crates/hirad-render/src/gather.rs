@@ -253,33 +253,36 @@ impl<'a> Gatherer<'a> {
         cnt: &mut Counts,
     ) -> Vec3 {
         let (l, b, _) = self.incident(x, n, ud, ub, depth, true, rng, cnt);
-        self.direct(x, n, rho, upick, ul, true, cnt) + rho * l + rho * b
+        self.direct(x, n, rho, &[(upick, ul)], true, cnt) + rho * l + rho * b
     }
 
     /// Direct light reflected at `x` of normal `n` and reflectance `rho`: ρ/π × the irradiance
-    /// from one emitter sample `ul` and the sun. With `mis` the emitter sample is weighted
-    /// against the gather rays' emission hits, without it it stands for all direct light.
+    /// from the emitters (the mean of one emitter sample per `(pick, point)` of `samples`) and
+    /// the sun. With `mis` an emitter sample is weighted against the gather rays' emission
+    /// hits, without it the samples stand for all direct light.
     #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
         x: Vec3,
         n: Vec3,
         rho: Vec3,
-        upick: f64,
-        ul: (f32, f32),
+        samples: &[(f64, (f32, f32))],
         mis: bool,
         cnt: &mut Counts,
     ) -> Vec3 {
         let scene = self.scene;
         let mut e = Vec3::ZERO; // irradiance estimate
         if !self.lights.is_empty() {
-            let lt = self.lights.pick(upick);
-            let s = ul.0.sqrt();
-            let u2 = ul.1;
-            let y = lt.a * (1.0 - s) + lt.b * (s * (1.0 - u2)) + lt.c * (s * u2);
-            let to = y - x;
-            let dist2 = to.length_squared();
-            if dist2 > 0.0 {
+            for &(upick, ul) in samples {
+                let lt = self.lights.pick(upick);
+                let s = ul.0.sqrt();
+                let u2 = ul.1;
+                let y = lt.a * (1.0 - s) + lt.b * (s * (1.0 - u2)) + lt.c * (s * u2);
+                let to = y - x;
+                let dist2 = to.length_squared();
+                if dist2 <= 0.0 {
+                    continue;
+                }
                 let w = to / dist2.sqrt();
                 let cos_x = n.dot(w);
                 let cos_y = -lt.normal.dot(w);
@@ -296,6 +299,7 @@ impl<'a> Gatherer<'a> {
                     }
                 }
             }
+            e /= samples.len().max(1) as f32;
         }
         if let Some(sun) = scene.sun {
             let cos = n.dot(sun.direction);
@@ -475,7 +479,12 @@ impl<'a> Gatherer<'a> {
                 l += match cache.and_then(|c| c.lookup(q, ns, sx, sy)) {
                     Some(li) => {
                         cnt.cached += 1;
-                        self.direct(p, ns, mat.rho, upick, ul, false, cnt) + mat.rho * li
+                        // The gather ray it does not cast pays for a second emitter sample,
+                        // the first one's strata shifted by half.
+                        let half = |u: f32| (u + 0.5).fract();
+                        let second = ((upick + 0.5).fract(), (half(ul.0), half(ul.1)));
+                        let emitters = [(upick, ul), second];
+                        self.direct(p, ns, mat.rho, &emitters, false, cnt) + mat.rho * li
                     }
                     None => self.reflected(p, ns, mat.rho, upick, ul, ud, ub, 0, &mut rng, cnt),
                 };
