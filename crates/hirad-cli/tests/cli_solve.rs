@@ -128,6 +128,25 @@ fn solve_gather_equals_render_gather_with_the_same_flags() {
         .unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--gather needs --scene"));
+    // An irradiance cache whose points would need more rays than it holds: exit 2, said.
+    let o = hirad()
+        .args(["-q", "render"])
+        .arg(out.join("solution.glb"))
+        .args([
+            "--scene",
+            "cornell",
+            "--gather",
+            "8",
+            "--gather-cache",
+            "1024",
+        ])
+        .args(["--image"])
+        .arg(d.path().join("c.exr"))
+        .args(cam)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("gather rays per point"));
 }
 
 /// Choices parse in any case; `solve --clustering all` is refused with a list that does not

@@ -42,7 +42,8 @@ use std::sync::atomic::AtomicBool;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GatherOptions {
     /// Samples per pixel: camera rays, light samples and gather rays (one each per sample; a
-    /// sample that takes its indirect light from the irradiance cache casts no gather ray).
+    /// sample that takes its indirect light from the irradiance cache casts no gather ray and
+    /// two light samples).
     pub rays: u32,
     /// Seed of the per-pixel generators.
     pub seed: u64,
@@ -62,7 +63,7 @@ pub struct GatherOptions {
     pub near: f32,
     /// Irradiance cache: the indirect light of one point per block of this many pixels
     /// squared, gathered with the block's rays and interpolated where valid (`gather/cache.rs`);
-    /// 0: every sample gathers its own.
+    /// 0: every sample gathers its own (and what a record written before the cache reads).
     #[serde(default)]
     pub cache: u32,
 }
@@ -522,16 +523,20 @@ impl<'a> Gatherer<'a> {
         let w = view.width as usize;
         let mut img = Image::new(view.width, view.height, Vec3::ZERO);
         let mut pre = Counts::default();
-        let cache = (self.opts.cache > 0).then(|| {
-            Cache::build(
+        let cache = if self.opts.cache > 0 {
+            Some(Cache::build(
                 self,
                 &frame,
                 view.width,
                 view.height,
                 self.opts.cache,
+                progress,
+                cancel,
                 &mut pre,
-            )
-        });
+            )?)
+        } else {
+            None
+        };
         let mut counts: Vec<Counts> =
             render_rows(&mut img, "gather", progress, cancel, |x, y, cnt| {
                 self.pixel(&frame, cache.as_ref(), x, y, w, cnt)

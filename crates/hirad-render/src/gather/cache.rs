@@ -5,8 +5,8 @@
 //! indirect light there varies slowly, so one well-sampled point serves its neighbours; near
 //! corners, contacts and silhouettes no point is valid and the sample gathers on its own as
 //! before. The points do not count the emission their rays hit: a sample that takes them has
-//! its direct light from the emitter sample alone (multiple importance weights hold only at
-//! one point).
+//! its direct light from emitter samples alone, two of them (multiple importance weights hold
+//! only at one point; the gather ray it does not cast pays for the second), and the sun.
 //!
 //! A point's validity radius R is the harmonic mean distance of its gather rays' hits (rays
 //! that leave the scene say nothing about it), capped so that no sample farther than [`REACH`]
@@ -19,8 +19,11 @@
 use super::{stratum, Counts, Gatherer};
 use crate::camera::CameraFrame;
 use glam::{DVec3, Vec3};
+use hirad_core::progress::Progress;
 use hirad_core::rng::SplitMix64;
+use hirad_core::{Error, Result};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Largest Ward error of a point used for a sample (pbrt-v2's irradiance cache uses 0.2).
 pub(super) const ACCURACY: f32 = 0.2;
@@ -28,6 +31,8 @@ pub(super) const ACCURACY: f32 = 0.2;
 pub(super) const REACH: f32 = 2.0;
 /// Mixed into the seed of the points' generators (the pixels' generators use the seed alone).
 const SEED_TAG: u64 = 0x4952_5241_4443_4143;
+/// Most gather rays of one point (`rays × S²`): a point's ray strata are held in memory.
+pub(super) const MAX_POINT_RAYS: u64 = 1 << 22;
 
 /// One point of the cache: where it lies, its normal, the mean incident radiance of its
 /// gather rays (ρ times it is the reflected indirect radiance) and its validity radius.
@@ -49,41 +54,67 @@ pub(super) struct Cache {
 }
 
 impl Cache {
-    /// Gather the points of a `width × height` view, `rays × spacing²` gather rays each.
+    /// Gather the points of a `width × height` view, `rays × spacing²` gather rays each (at
+    /// most [`MAX_POINT_RAYS`]), one row of points per progress step.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn build(
         g: &Gatherer,
         frame: &CameraFrame,
         width: u32,
         height: u32,
         spacing: u32,
+        progress: &dyn Progress,
+        cancel: Option<&AtomicBool>,
         cnt: &mut Counts,
-    ) -> Cache {
+    ) -> Result<Cache> {
         let s = spacing.max(1);
+        let m = g.opts.rays as u64 * s as u64 * s as u64;
+        if m > MAX_POINT_RAYS {
+            return Err(Error::Config(format!(
+                "gather cache: {} rays × {s}² = {m} gather rays per point, at most {MAX_POINT_RAYS}",
+                g.opts.rays
+            )));
+        }
+        let m = m.max(1) as u32;
         let cols = width.div_ceil(s) as usize + 1;
         let rows = height.div_ceil(s) as usize + 1;
-        let m = g.opts.rays.saturating_mul(s * s).max(1);
-        let out: Vec<(Option<Point>, Counts)> = (0..cols * rows)
+        let stopped = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+        progress.start("gather cache", rows as u64);
+        let out: Vec<Vec<(Option<Point>, Counts)>> = (0..rows)
             .into_par_iter()
-            .map(|i| {
-                let mut c = Counts::default();
-                let sx = (i % cols) as f32 * s as f32;
-                let sy = (i / cols) as f32 * s as f32;
-                let seed = g.opts.seed ^ SEED_TAG;
-                let p = point(g, frame, sx, sy, s, m, seed, i as u64, &mut c);
-                (p, c)
+            .map(|r| {
+                let row = (0..cols)
+                    .map(|c| {
+                        let mut n = Counts::default();
+                        if stopped() {
+                            return (None, n);
+                        }
+                        let (sx, sy) = ((c as u32 * s) as f32, (r as u32 * s) as f32);
+                        let seed = g.opts.seed ^ SEED_TAG;
+                        let i = (r * cols + c) as u64;
+                        (point(g, frame, sx, sy, s, m, seed, i, &mut n), n)
+                    })
+                    .collect();
+                progress.inc(1);
+                row
             })
             .collect();
-        let mut points = Vec::with_capacity(out.len());
+        progress.finish();
+        if stopped() {
+            return Err(Error::Interrupted);
+        }
+        let out = out.into_iter().flatten();
+        let mut points = Vec::with_capacity(cols * rows);
         for (p, c) in out {
             cnt.add(&c);
             points.push(p);
         }
-        Cache {
+        Ok(Cache {
             spacing: s,
             cols,
             rows,
             points,
-        }
+        })
     }
 
     /// Number of points gathered.
@@ -131,8 +162,8 @@ impl Cache {
     }
 }
 
-/// The point of the block centred at image position `(sx, sy)`: `m` stratified samples of
-/// [`Gatherer::incident`] at the camera ray's hit.
+/// The point at image position `(sx, sy)`, a corner of the blocks around it: `m` stratified
+/// samples of [`Gatherer::incident`] at the camera ray's hit.
 #[allow(clippy::too_many_arguments)]
 fn point(
     g: &Gatherer,
