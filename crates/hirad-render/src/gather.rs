@@ -161,6 +161,14 @@ impl Counts {
     }
 }
 
+/// Shuffle `p` in place (Fisher–Yates, from the last entry down).
+fn shuffle(p: &mut [u32], rng: &mut SplitMix64) {
+    for i in (1..p.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        p.swap(i, j);
+    }
+}
+
 /// `(i + jitter) / n` strata of a `a × b` grid for sample `k` (samples beyond the grid are
 /// uniform).
 #[inline]
@@ -442,10 +450,7 @@ impl<'a> Gatherer<'a> {
             &mut perm_bpick,
             &mut perm_b,
         ] {
-            for i in (1..n as usize).rev() {
-                let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-                p.swap(i, j);
-            }
+            shuffle(p, &mut rng);
         }
         let mut sum = DVec3::ZERO;
         for k in 0..n {

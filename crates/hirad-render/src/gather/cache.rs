@@ -16,7 +16,7 @@
 //! valid corners: exact where the light varies linearly across a block whose corners are all
 //! valid, which Ward's inverse-error weights are not.
 
-use super::{stratum, Counts, Gatherer};
+use super::{shuffle, stratum, Counts, Gatherer};
 use crate::camera::CameraFrame;
 use glam::{DVec3, Vec3};
 use hirad_core::progress::Progress;
@@ -196,10 +196,7 @@ fn point(
     let mut perm_bpick: Vec<u32> = (0..m).collect();
     let mut perm_b: Vec<u32> = (0..m).collect();
     for q in [&mut perm_bpick, &mut perm_b] {
-        for i in (1..m as usize).rev() {
-            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-            q.swap(i, j);
-        }
+        shuffle(q, &mut rng);
     }
     let (mut sum, mut inv_t, mut hits) = (DVec3::ZERO, 0.0f64, 0u32);
     for k in 0..m {
