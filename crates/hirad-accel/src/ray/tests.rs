@@ -439,7 +439,7 @@ fn stack_spills_to_heap_in_order() {
 
 #[test]
 fn group_test_equals_scalar_slab() {
-    // The 4-wide box test of a group gives the scalar slab test's answer and entry distance
+    // The 4-wide box test of a group (and the 8-wide test of two) gives the scalar slab test's answer and entry distance
     // in every lane, including rays with zero direction components (both signs) whose origin
     // lies in a box plane (0·∞ = NaN), and never hits an empty lane. The one exception: a lane
     // is skipped when the ray lies in the plane of one of its box's faces whose face bit is set
@@ -466,6 +466,28 @@ fn group_test_equals_scalar_slab() {
         }
         let (mask, tn) = r4.test(&grp, &faces, 0.0, 10.0);
         assert_eq!(mask & 8, 0, "empty lane hit");
+        // The 8-wide AVX test of two groups gives the two 4-wide tests' masks and distances.
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            let mut other = layout::Group::default();
+            for lane in 0..(i % 5) {
+                let (lo, hi) = grid_box(&mut g, grid);
+                other.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
+            }
+            let f2 = (g.next_u64() & 0x3F3F3F3F) as u32;
+            let (m2, t2) = r4.test(&other, &f2, 0.0, 10.0);
+            // SAFETY: AVX was detected above; two groups and two face words.
+            let (m8, t8) = unsafe { r4.test8(&[grp, other], &[faces, f2], 0.0, 10.0) };
+            assert_eq!(m8, mask | m2 << 4);
+            for lane in 0..4 {
+                if mask >> lane & 1 == 1 {
+                    assert_eq!(t8[lane], tn[lane]);
+                }
+                if m2 >> lane & 1 == 1 {
+                    assert_eq!(t8[4 + lane], t2[lane]);
+                }
+            }
+        }
         for (lane, b) in boxes.iter().enumerate() {
             let s = r.slab(b, 0.0, 10.0);
             let f = faces >> (8 * lane);
@@ -644,5 +666,64 @@ fn validate_finds_broken_references() {
             p.id[k] = if p.id[k] == 0 { 1 } else { 0 };
             assert!(dropped.validate().is_err(), "{s:?} {boxes:?}");
         }
+    }
+}
+
+#[test]
+fn baseline_and_avx2_traversals_equal_brute_force() {
+    // The occlusion traversal compiled for the x86_64 baseline (4-wide box tests) and the one
+    // for AVX2 (8-wide) answer as the brute-force loop does, for every strategy, on random
+    // triangles of mixed sizes and random segments.
+    let mut g = hirad_core::rng::SplitMix64::new(21);
+    let mut f = |s: f32| (g.next_f32() - 0.5) * s;
+    let corners: Vec<[Vec3; 3]> = (0..600)
+        .map(|i| {
+            let c = Vec3::new(f(8.0), f(8.0), f(8.0));
+            let s = if i % 7 == 0 { 3.0 } else { 0.6 };
+            [
+                c,
+                c + Vec3::new(f(s), f(s), f(s)),
+                c + Vec3::new(f(s), f(s), f(s)),
+            ]
+        })
+        .collect();
+    let s = tri_scene("random", corners.len(), |i| corners[i]);
+    let segs: Vec<Segment> = (0..3000)
+        .map(|_| {
+            Segment::between(
+                Vec3::new(f(9.0), f(9.0), f(9.0)),
+                Vec3::new(f(9.0), f(9.0), f(9.0)),
+            )
+        })
+        .collect();
+    for st in Strategy::ALL {
+        let t = ClusterTree::build(&s, st, &ClusterConfig::default());
+        let rc = RayCaster::new(&s, &t);
+        let root = rc.layout.root.unwrap();
+        let (mut blocked, mut wide) = (0, 0);
+        for q in &segs {
+            let want = rc.occluded_brute(q.origin, q.dir, q.tmin, q.tmax);
+            let r = RayPre::new(q.origin, q.dir).unwrap();
+            let none = &|_| false;
+            let st0 = &mut RayStats::default();
+            let inside = r.slab(&rc.layout.root_box, q.tmin, q.tmax).is_some();
+            let base = inside
+                && rc
+                    .occluded_loop::<false, false, _>(&r, root, q.tmin, q.tmax, st0, none)
+                    .is_some();
+            assert_eq!(base, want, "{st:?} {q:?}");
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2() {
+                // SAFETY: AVX2 was detected.
+                let avx = inside
+                    && unsafe { rc.occluded_avx2::<false, _>(&r, root, q.tmin, q.tmax, st0, none) }
+                        .is_some();
+                assert_eq!(avx, want, "{st:?} {q:?}");
+                wide += 1;
+            }
+            blocked += want as u32;
+        }
+        assert!(blocked > 300 && blocked < 2700, "{st:?} {blocked}");
+        let _ = wide;
     }
 }

@@ -139,6 +139,54 @@ impl Ray4 {
         }
     }
 
+    /// [`Ray4::test`] of the two groups `g[0]`, `g[1]` of a node in one 8-wide AVX pass:
+    /// bit `i` (`4 + i`) of the mask is lane `i` of `g[0]` (`g[1]`). The same f32 operations
+    /// per lane as [`Ray4::test`], hence the same mask.
+    ///
+    /// # Safety
+    /// The CPU must support AVX; `g` and `faces` hold two entries.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub(in crate::ray) unsafe fn test8(
+        &self,
+        g: &[Group],
+        faces: &[u32],
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 8]) {
+        use core::arch::x86_64::*;
+        let (g0, g1) = (g.get_unchecked(0), g.get_unchecked(1));
+        let mut tn = _mm256_set1_ps(tmin);
+        let mut tf = _mm256_set1_ps(tmax);
+        for a in 0..3 {
+            let o = _mm256_broadcast_ps(&*(self.o[a].as_ptr() as *const __m128));
+            let inv = _mm256_broadcast_ps(&*(self.inv[a].as_ptr() as *const __m128));
+            let (i, j) = (self.near[a], self.far[a]);
+            let n = _mm256_loadu2_m128(
+                g1.b.get_unchecked(i).as_ptr(),
+                g0.b.get_unchecked(i).as_ptr(),
+            );
+            let f = _mm256_loadu2_m128(
+                g1.b.get_unchecked(j).as_ptr(),
+                g0.b.get_unchecked(j).as_ptr(),
+            );
+            let t0 = _mm256_mul_ps(_mm256_sub_ps(n, o), inv);
+            let t1 = _mm256_mul_ps(_mm256_sub_ps(f, o), inv);
+            tn = _mm256_max_ps(t0, tn);
+            tf = _mm256_min_ps(t1, tf);
+        }
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_mul_ps(tf, _mm256_set1_ps(BOX_SLACK)));
+        let mut mask = _mm256_movemask_ps(hit) as u32;
+        if self.in_plane != 0 {
+            mask &= !(self.flat_in_plane(g0, *faces.get_unchecked(0))
+                | self.flat_in_plane(g1, *faces.get_unchecked(1)) << 4);
+        }
+        let mut out = [0f32; 8];
+        _mm256_storeu_ps(out.as_mut_ptr(), tn);
+        (mask, out)
+    }
+
     /// [`Ray4::test`] for occlusion: the hit mask and, for every lane, its position among the
     /// hit lanes in push order (farthest entry first, ties: higher lane first), so that the
     /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
