@@ -143,16 +143,40 @@ impl Lane {
     /// Visit the next node of this ray (the same work as one iteration of
     /// `occluded_impl`).
     #[inline(always)]
-    fn step(&mut self, l: &Layout) -> Step {
+    fn step<const WIDE: bool>(&mut self, l: &Layout) -> Step {
         if self.len == 0 {
             return Step::Miss;
         }
         self.len -= 1;
         let n = self.stack[self.len as usize];
         let (mut ts, mut nt, g0, ng) = l.node(n);
-        for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
-            let (all, rank) = self.r4.test_ranked(g, f, self.tmin, self.tmax);
+        let mut all8 = 0;
+        #[cfg(target_arch = "x86_64")]
+        if WIDE && ng == 2 {
+            // SAFETY: `WIDE` is set only under AVX2 (`stream_avx2`); two groups and their
+            // face words.
+            all8 = unsafe {
+                self.r4.test8(
+                    &l.groups[g0..g0 + 2],
+                    &l.faces[g0..g0 + 2],
+                    self.tmin,
+                    self.tmax,
+                )
+            }
+            .0;
+        }
+        for (j, (g, f)) in l.groups[g0..g0 + ng]
+            .iter()
+            .zip(&l.faces[g0..g0 + ng])
+            .enumerate()
+        {
+            let all = if WIDE && ng == 2 {
+                all8 >> (4 * j) & 0xF
+            } else {
+                self.r4.test(g, f, self.tmin, self.tmax).0
+            };
             let (mask, run) = g.split_eager(all);
+            let rank = PUSH_ORDER[(mask | (g.eager as u32 & 0xF0 & mask << 4)) as usize];
             if let Some(run) = run {
                 (ts, nt) = run;
             }
@@ -181,6 +205,34 @@ impl Lane {
         Step::Continue
     }
 }
+
+/// Stack positions of the four lanes of a group for occlusion, by `mask | first << 4`
+/// (`mask`: lanes hit, `first`: those of them visited first): the hit lanes in lane order, those
+/// of `first` after the others (so that the highest of `first` ends on top, as
+/// [`descend`] orders them), then the lanes not hit, which land above the new top.
+const PUSH_ORDER: [[u8; 4]; 256] = {
+    let mut t = [[0u8; 4]; 256];
+    let mut k = 0;
+    while k < 256 {
+        let (mask, first) = (k as u32 & 0xF, k as u32 >> 4);
+        let mut pos = 0u8;
+        let sets = [mask & !first, mask & first, !mask & 0xF];
+        let mut s = 0;
+        while s < 3 {
+            let mut lane = 0;
+            while lane < 4 {
+                if sets[s] >> lane & 1 == 1 {
+                    t[k][lane] = pos;
+                    pos += 1;
+                }
+                lane += 1;
+            }
+            s += 1;
+        }
+        k += 1;
+    }
+    t
+};
 
 /// Entry of the traversal stack: node reference and entry distance of its box.
 #[derive(Clone, Copy)]
@@ -211,16 +263,17 @@ struct Entry {
 ///
 /// Where the CPU has AVX2 the single-ray queries run a copy of the traversal compiled for it,
 /// which tests the two groups of a node of five to eight lanes in one 8-wide pass (the same
-/// f32 operations per lane, hence the same masks). An occlusion query decides over all lanes
-/// of a node at once: the nearest hit child is visited next without going through the stack,
-/// the others are pushed farthest first; closest-hit queries push every hit child, nearest
-/// on top, and skip entries farther than the current hit.
-/// Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
+/// f32 operations per lane, hence the same masks). An occlusion query takes the hit children
+/// of a node in lane order, not by distance (as Embree's occlusion rays do: the sort cost more
+/// than the visits it saved, `docs/perf-log.md` 2026-12-05 (23)); the last is visited next
+/// without going through the stack; pieces of a node's run marked to be visited first are
+/// taken before the other lanes. Closest-hit queries push every hit child, nearest on top, and
+/// skip entries farther than the current hit. Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
 /// [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
 /// node of each in turn, so that the memory latency of one ray's next node (prefetched at the
 /// end of the step before) overlaps with work on the others; it places the hit children on
-/// its stack at positions computed without branches (`Ray4::test_ranked`: the same order as
-/// the sorted push, whose branches random rays mispredict). Counters ([`RayStats`]) are
+/// its stack at positions looked up without branches (`PUSH_ORDER`: the order of the
+/// single-ray traversal). Counters ([`RayStats`]) are
 /// compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
 /// no counting cost.
 pub struct RayCaster<'a> {
@@ -376,6 +429,27 @@ impl<'a> RayCaster<'a> {
     /// the work on the others. Same results as [`RayCaster::occluded`] for every segment.
     pub fn occluded_stream(&self, segs: &[Segment], out: &mut [bool]) {
         assert_eq!(segs.len(), out.len(), "one output per segment");
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            // SAFETY: the CPU has AVX2 (checked above).
+            return unsafe { self.stream_avx2(segs, out) };
+        }
+        self.stream_impl::<false>(segs, out)
+    }
+
+    /// [`RayCaster::stream_impl`] compiled for AVX2, with 8-wide box tests.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,bmi2,lzcnt")]
+    unsafe fn stream_avx2(&self, segs: &[Segment], out: &mut [bool]) {
+        self.stream_impl::<true>(segs, out)
+    }
+
+    /// [`RayCaster::occluded_stream`]; `WIDE` as in [`RayCaster::occluded_loop`].
+    #[inline(always)]
+    fn stream_impl<const WIDE: bool>(&self, segs: &[Segment], out: &mut [bool]) {
         let l = &self.layout;
         let Some(root) = l.root else {
             out.fill(false);
@@ -433,7 +507,7 @@ impl<'a> RayCaster<'a> {
                 if !lane.busy {
                     continue;
                 }
-                match lane.step(l) {
+                match lane.step::<WIDE>(l) {
                     Step::Continue => continue,
                     Step::Hit => out[lane.seg as usize] = true,
                     Step::Miss => {}
@@ -611,68 +685,57 @@ impl<'a> RayCaster<'a> {
             let (mut ts, mut nt, g0, ng) = l.node(cur);
             let mut next = None;
             if ng <= 2 {
-                // One decision over the node's (up to eight) lanes: the nearest hit child is
-                // visited next without going through the stack.
+                // One decision over the node's (up to eight) lanes, in lane order.
                 let mut mask = 0u32;
-                let mut tn = [0f32; 8];
+                let mut first = 0u32;
                 let mut child = [NONE_REF; 8];
                 #[cfg(target_arch = "x86_64")]
                 let wide = WIDE && ng == 2;
                 #[cfg(not(target_arch = "x86_64"))]
                 let wide = false;
+                let mut all = 0u32;
                 if wide {
                     #[cfg(target_arch = "x86_64")]
                     {
-                        let gs = &l.groups[g0..g0 + 2];
                         // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`); two
                         // groups and their face words.
-                        let (all, t) = unsafe { r4.test8(gs, &l.faces[g0..g0 + 2], tmin, tmax) };
-                        tn = t;
-                        for (j, g) in gs.iter().enumerate() {
-                            if STATS {
-                                stats.boxes += g.lanes as u64;
-                            }
-                            let (m, run) = g.split_eager(all >> (4 * j) & 0xF);
-                            if let Some(run) = run {
-                                (ts, nt) = run;
-                            }
-                            let mut t4 = [tn[4 * j], tn[4 * j + 1], tn[4 * j + 2], tn[4 * j + 3]];
-                            g.rank_first(&mut t4);
-                            tn[4 * j..4 * j + 4].copy_from_slice(&t4);
-                            mask |= m << (4 * j);
-                            child[4 * j..4 * j + 4].copy_from_slice(&g.child);
+                        all = unsafe {
+                            r4.test8(&l.groups[g0..g0 + 2], &l.faces[g0..g0 + 2], tmin, tmax)
                         }
+                        .0;
                     }
                 } else {
                     for j in 0..ng {
-                        let g = &l.groups[g0 + j];
-                        if STATS {
-                            stats.boxes += g.lanes as u64;
-                        }
-                        let (all, mut t) = r4.test(g, &l.faces[g0 + j], tmin, tmax);
-                        let (m, run) = g.split_eager(all);
-                        if let Some(run) = run {
-                            (ts, nt) = run;
-                        }
-                        g.rank_first(&mut t);
-                        mask |= m << (4 * j);
-                        tn[4 * j..4 * j + 4].copy_from_slice(&t);
-                        child[4 * j..4 * j + 4].copy_from_slice(&g.child);
+                        all |=
+                            r4.test(&l.groups[g0 + j], &l.faces[g0 + j], tmin, tmax).0 << (4 * j);
                     }
                 }
-                next = descend(&mut stack, l, mask, &tn, &child);
+                for (j, g) in l.groups[g0..g0 + ng].iter().enumerate() {
+                    if STATS {
+                        stats.boxes += g.lanes as u64;
+                    }
+                    let (m, run) = g.split_eager(all >> (4 * j) & 0xF);
+                    if let Some(run) = run {
+                        (ts, nt) = run;
+                    }
+                    mask |= m << (4 * j);
+                    first |= ((g.eager >> 4) as u32) << (4 * j);
+                    child[4 * j..4 * j + 4].copy_from_slice(&g.child);
+                }
+                next = descend(&mut stack, l, mask, first, &child);
             } else {
                 for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                     if STATS {
                         stats.boxes += g.lanes as u64;
                     }
-                    let (all, mut tn) = r4.test(g, f, tmin, tmax);
+                    let (all, _) = r4.test(g, f, tmin, tmax);
                     let (mask, run) = g.split_eager(all);
                     if let Some(run) = run {
                         (ts, nt) = run;
                     }
-                    g.rank_first(&mut tn);
-                    push_sorted(&mut stack, l, mask, &tn, &g.child, |c, _| c);
+                    if let Some(c) = descend(&mut stack, l, mask, (g.eager >> 4) as u32, &g.child) {
+                        stack.push(c);
+                    }
                 }
             }
             if nt > 0 {
@@ -834,48 +897,38 @@ fn has_avx2() -> bool {
 /// Reference of a lane without a child (never read: such lanes are not hit).
 const NONE_REF: u32 = u32::MAX;
 
-/// The hit lanes (`mask`, up to eight) of a node for occlusion: the nearest is returned (to be
-/// visited next), the others are pushed farthest first.
+/// The hit lanes (`mask`) of a node for occlusion, in lane order: the lanes of `first` (pieces
+/// visited first) after the others, the highest of each set first. The lane to visit next is
+/// returned, the others are pushed so that they are popped in that order.
 #[inline(always)]
 fn descend<const N: usize>(
     stack: &mut Stack<u32, N>,
     l: &Layout,
     mask: u32,
-    tn: &[f32; 8],
-    child: &[u32; 8],
+    first: u32,
+    child: &[u32],
 ) -> Option<u32> {
-    match mask.count_ones() {
-        0 => None,
-        1 => Some(child[mask.trailing_zeros() as usize]),
-        2 => {
-            let i = mask.trailing_zeros() as usize;
-            let j = (mask & (mask - 1)).trailing_zeros() as usize;
-            let (far, near) = if tn[i] <= tn[j] { (j, i) } else { (i, j) };
-            l.prefetch(child[far]);
-            stack.push(child[far]);
-            Some(child[near])
+    let (mut rest, mut last) = (mask & !first, mask & first);
+    if last == 0 {
+        (rest, last) = (0, rest);
+    }
+    while rest != 0 {
+        let i = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        l.prefetch(child[i]);
+        stack.push(child[i]);
+    }
+    if last == 0 {
+        return None;
+    }
+    loop {
+        let i = last.trailing_zeros() as usize;
+        last &= last - 1;
+        if last == 0 {
+            return Some(child[i]);
         }
-        _ => {
-            let mut idx = [0usize; 8];
-            let mut k = 0;
-            let mut m = mask;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let mut j = k;
-                while j > 0 && tn[idx[j - 1]] <= tn[i] {
-                    idx[j] = idx[j - 1];
-                    j -= 1;
-                }
-                idx[j] = i;
-                k += 1;
-            }
-            for &i in &idx[..k - 1] {
-                l.prefetch(child[i]);
-                stack.push(child[i]);
-            }
-            Some(child[idx[k - 1]])
-        }
+        l.prefetch(child[i]);
+        stack.push(child[i]);
     }
 }
 

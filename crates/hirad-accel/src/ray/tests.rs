@@ -554,50 +554,32 @@ fn long_runs_go_to_wide_packets() {
 }
 
 #[test]
-fn ranked_push_order_equals_sorted_push() {
-    // The branch-free positions of `test_ranked` put the hit lanes in the order `push_sorted`
-    // pushes them (decreasing entry distance, ties: higher lane first), and the lanes that are
-    // not hit after them; ties of entry distances included (boxes sharing a near plane).
-    let mut g = hirad_core::rng::SplitMix64::new(11);
-    let grid = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 5) as f32 * 0.5 - 1.0;
-    let mut ties = 0;
-    for _ in 0..20000 {
-        // Origins on the grid: often inside several boxes, whose entry distances are then all
-        // tmin (ties).
-        let o = Vec3::new(grid(&mut g), grid(&mut g), grid(&mut g));
-        let d = Vec3::new(g.next_f32() - 0.5, g.next_f32() - 0.5, g.next_f32() - 0.5);
-        let r = RayPre::new(o, d).unwrap();
-        let r4 = layout::Ray4::new(&r);
-        let mut grp = layout::Group::default();
-        for lane in 0..(g.next_u64() % 5) as usize {
-            let (lo, hi) = grid_box(&mut g, grid);
-            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
+fn stream_push_order_equals_single_ray_order() {
+    // The branch-free positions of a group's lanes on a stream ray's stack (`PUSH_ORDER`) pop
+    // the hit lanes in the order the single-ray traversal visits them (`descend`: the lanes
+    // visited first before the others, the highest of each set first), and put the lanes not
+    // hit above the new top.
+    let child = [10, 11, 12, 13];
+    for mask in 0..16u32 {
+        for first in 0..16u32 {
+            let first = first & mask;
+            let pos = PUSH_ORDER[(mask | first << 4) as usize];
+            let mut seen = pos.map(|p| p as usize);
+            seen.sort();
+            assert_eq!(seen, [0, 1, 2, 3]);
+            let k = mask.count_ones() as usize;
+            let mut stream = [0u32; 4];
+            for lane in 0..4 {
+                stream[pos[lane] as usize] = child[lane];
+                assert_eq!((pos[lane] as usize) < k, mask >> lane & 1 == 1);
+            }
+            let mut single: Stack<u32, 8> = Stack::new();
+            if let Some(c) = descend(&mut single, &layout::Layout::default(), mask, first, &child) {
+                single.push(c);
+            }
+            assert_eq!(single.top_mut(k), &stream[..k], "{mask:04b} {first:04b}");
         }
-        let (mask, tn) = r4.test(&grp, &0, 0.0, 100.0);
-        let (mask2, rank) = r4.test_ranked(&grp, &0, 0.0, 100.0);
-        assert_eq!(mask, mask2);
-        let mut sorted: Stack<u32, 8> = Stack::new();
-        push_sorted(
-            &mut sorted,
-            &layout::Layout::default(),
-            mask,
-            &tn,
-            &grp.child,
-            |c, _| c,
-        );
-        let k = mask.count_ones() as usize;
-        let mut ranked = [u32::MAX; 4];
-        for i in 0..4 {
-            ranked[rank[i] as usize] = i as u32;
-        }
-        assert_eq!(sorted.top_mut(k), &ranked[..k], "{mask:b} {tn:?} {rank:?}");
-        let mut all = rank;
-        all.sort();
-        assert_eq!(all, [0, 1, 2, 3]);
-        ties +=
-            (0..4).any(|i| (0..i).any(|j| mask >> i & mask >> j & 1 == 1 && tn[i] == tn[j])) as u32;
     }
-    assert!(ties > 500, "{ties}");
 }
 
 #[test]
@@ -671,9 +653,9 @@ fn validate_finds_broken_references() {
 
 #[test]
 fn baseline_and_avx2_traversals_equal_brute_force() {
-    // The occlusion traversal compiled for the x86_64 baseline (4-wide box tests) and the one
-    // for AVX2 (8-wide) answer as the brute-force loop does, for every strategy, on random
-    // triangles of mixed sizes and random segments.
+    // The occlusion traversals (single ray and batch) compiled for the x86_64 baseline (4-wide
+    // box tests) and for AVX2 (8-wide) answer as the brute-force loop does, for every
+    // strategy, on random triangles of mixed sizes and random segments.
     let mut g = hirad_core::rng::SplitMix64::new(21);
     let mut f = |s: f32| (g.next_f32() - 0.5) * s;
     let corners: Vec<[Vec3; 3]> = (0..600)
@@ -725,5 +707,20 @@ fn baseline_and_avx2_traversals_equal_brute_force() {
         }
         assert!(blocked > 300 && blocked < 2700, "{st:?} {blocked}");
         let _ = wide;
+        // The batch traversal (several rays in flight), compiled both ways.
+        let want: Vec<bool> = segs
+            .iter()
+            .map(|q| rc.occluded_brute(q.origin, q.dir, q.tmin, q.tmax))
+            .collect();
+        let mut out = vec![false; segs.len()];
+        rc.stream_impl::<false>(&segs, &mut out);
+        assert_eq!(out, want, "{st:?}");
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            out.fill(false);
+            // SAFETY: AVX2 was detected.
+            unsafe { rc.stream_avx2(&segs, &mut out) };
+            assert_eq!(out, want, "{st:?}");
+        }
     }
 }

@@ -74,16 +74,6 @@ impl Group {
         (all & !eager, run)
     }
 
-    /// Rank the pieces visited first ([`FIRST`]) nearest: entry distance `-f32::MAX`.
-    #[inline(always)]
-    pub(in crate::ray) fn rank_first(&self, tn: &mut [f32; 4]) {
-        let mut m = self.eager >> 4;
-        while m != 0 {
-            tn[m.trailing_zeros() as usize] = -f32::MAX;
-            m &= m - 1;
-        }
-    }
-
     /// Put `b` and reference `r` in `lane`.
     pub(in crate::ray) fn set_lane(&mut self, lane: usize, b: &Aabb, r: u32) {
         for a in 0..3 {

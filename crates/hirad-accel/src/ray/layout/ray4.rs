@@ -1,8 +1,8 @@
-//! The 4-wide slab test of a [`Group`]'s boxes ([`Ray4`]), with the branch-free ranking of
-//! the hit lanes that batch occlusion uses.
+//! The 4-wide slab test of a [`Group`]'s boxes ([`Ray4`]), and the 8-wide test of two groups
+//! under AVX.
 
 use super::super::watertight::{RayPre, BOX_SLACK};
-use super::encode::{Group, FIRST};
+use super::encode::Group;
 
 /// Per-ray data of the 4-wide box test: origin and reciprocal direction broadcast to four
 /// lanes, and for each axis the index of the near and far plane in [`Group::b`] (chosen by
@@ -186,102 +186,4 @@ impl Ray4 {
         _mm256_storeu_ps(out.as_mut_ptr(), tn);
         (mask, out)
     }
-
-    /// [`Ray4::test`] for occlusion: the hit mask and, for every lane, its position among the
-    /// hit lanes in push order (farthest entry first, ties: higher lane first), so that the
-    /// nearest ends on top. Lanes that are not hit get positions after the hit ones. Computed
-    /// without data-dependent branches (random rays make them unpredictable).
-    #[inline(always)]
-    pub(in crate::ray) fn test_ranked(
-        &self,
-        g: &Group,
-        faces: &u32,
-        tmin: f32,
-        tmax: f32,
-    ) -> (u32, [u32; 4]) {
-        let (all, tn) = self.test(g, faces, tmin, tmax);
-        let mask = g.split_eager(all).0;
-        #[cfg(target_arch = "x86_64")]
-        {
-            use core::arch::x86_64::*;
-            // SAFETY: SSE2 is part of the x86_64 baseline.
-            #[allow(unused_unsafe)]
-            unsafe {
-                let bits = _mm_setr_epi32(1, 2, 4, 8);
-                let lanes = |m: u32| {
-                    _mm_castsi128_ps(_mm_cmpeq_epi32(
-                        _mm_and_si128(_mm_set1_epi32(m as i32), bits),
-                        bits,
-                    ))
-                };
-                let hit = lanes(mask);
-                // Pieces visited first rank nearest of the lanes hit.
-                let mut tn = _mm_loadu_ps(tn.as_ptr());
-                if g.eager >= FIRST {
-                    tn = _mm_blendv_ps_sse2(
-                        tn,
-                        _mm_set1_ps(-f32::MAX),
-                        lanes((g.eager >> 4) as u32),
-                    );
-                }
-                let t = _mm_blendv_ps_sse2(_mm_set1_ps(f32::NEG_INFINITY), tn, hit);
-                // Rotation k compares lane i with lane (i + k) mod 4, which is a higher lane
-                // exactly for i < 4 - k.
-                let r1 = _mm_shuffle_ps::<0b00_11_10_01>(t, t);
-                let r2 = _mm_shuffle_ps::<0b01_00_11_10>(t, t);
-                let r3 = _mm_shuffle_ps::<0b10_01_00_11>(t, t);
-                let hi1 = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
-                let hi2 = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, 0, 0));
-                let hi3 = _mm_castsi128_ps(_mm_setr_epi32(-1, 0, 0, 0));
-                let before = |r: __m128, hi: __m128| {
-                    _mm_castps_si128(_mm_or_ps(
-                        _mm_cmpgt_ps(r, t),
-                        _mm_and_ps(_mm_cmpeq_ps(r, t), hi),
-                    ))
-                };
-                let n = _mm_add_epi32(
-                    _mm_add_epi32(before(r1, hi1), before(r2, hi2)),
-                    before(r3, hi3),
-                );
-                let mut out = [0u32; 4];
-                _mm_storeu_si128(
-                    out.as_mut_ptr() as *mut __m128i,
-                    _mm_sub_epi32(_mm_setzero_si128(), n),
-                );
-                (all, out)
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            let t: [f32; 4] = std::array::from_fn(|i| {
-                if mask >> i & 1 == 1 {
-                    if g.eager >> (4 + i) & 1 == 1 {
-                        -f32::MAX
-                    } else {
-                        tn[i]
-                    }
-                } else {
-                    f32::NEG_INFINITY
-                }
-            });
-            let out = std::array::from_fn(|i| {
-                (0..4)
-                    .filter(|&j| j != i && (t[j] > t[i] || (t[j] == t[i] && j > i)))
-                    .count() as u32
-            });
-            (all, out)
-        }
-    }
-}
-
-/// `blendv` with SSE2 only: lanes of `b` where `m` is set, of `a` elsewhere.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn _mm_blendv_ps_sse2(
-    a: core::arch::x86_64::__m128,
-    b: core::arch::x86_64::__m128,
-    m: core::arch::x86_64::__m128,
-) -> core::arch::x86_64::__m128 {
-    use core::arch::x86_64::*;
-    _mm_or_ps(_mm_and_ps(m, b), _mm_andnot_ps(m, a))
 }
