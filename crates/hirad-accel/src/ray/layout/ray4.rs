@@ -143,11 +143,14 @@ impl Ray4 {
     /// bit `i` (`4 + i`) of the mask is lane `i` of `g[0]` (`g[1]`). The same f32 operations
     /// per lane as [`Ray4::test`], hence the same mask.
     ///
+    /// Not itself compiled for AVX (a function with target features is not inlined into the
+    /// traversal loops, which are written once for both copies): it is inlined into the AVX2
+    /// copies of the traversals, where its intrinsics are then compiled for AVX too.
+    ///
     /// # Safety
     /// The CPU must support AVX; `g` and `faces` hold two entries.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    #[inline]
+    #[inline(always)]
     pub(in crate::ray) unsafe fn test8(
         &self,
         g: &[Group],
