@@ -22,7 +22,7 @@ use crate::cluster::ClusterTree;
 use glam::Vec3;
 use hirad_scene::Scene;
 pub use layout::Boxes;
-use layout::{Layout, Ray4};
+use layout::{Group, Layout, Ray4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 pub(crate) use stack::Stack;
@@ -153,12 +153,11 @@ impl Lane {
         let mut all8 = 0;
         #[cfg(target_arch = "x86_64")]
         if WIDE && ng == 2 {
-            // SAFETY: `WIDE` is set only under AVX2 (`stream_avx2`); two groups and their
-            // face words.
+            // SAFETY: `WIDE` is set only under AVX2 (`stream_avx2`).
             all8 = unsafe {
                 self.r4.test8(
-                    &l.groups[g0..g0 + 2],
-                    &l.faces[g0..g0 + 2],
+                    (&l.groups[g0], &l.groups[g0 + 1]),
+                    (l.faces[g0], l.faces[g0 + 1]),
                     self.tmin,
                     self.tmax,
                 )
@@ -684,45 +683,52 @@ impl<'a> RayCaster<'a> {
             }
             let (mut ts, mut nt, g0, ng) = l.node(cur);
             let mut next = None;
-            if ng <= 2 {
+            if ng == 0 {
+                // A leaf or a run: only triangles.
+            } else if ng <= 2 {
                 // One decision over the node's (up to eight) lanes, in lane order.
                 let mut mask = 0u32;
                 let mut first = 0u32;
-                let mut child = [NONE_REF; 8];
-                #[cfg(target_arch = "x86_64")]
-                let wide = WIDE && ng == 2;
-                #[cfg(not(target_arch = "x86_64"))]
-                let wide = false;
-                let mut all = 0u32;
-                if wide {
-                    #[cfg(target_arch = "x86_64")]
-                    {
-                        // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`); two
-                        // groups and their face words.
-                        all = unsafe {
-                            r4.test8(&l.groups[g0..g0 + 2], &l.faces[g0..g0 + 2], tmin, tmax)
-                        }
-                        .0;
-                    }
+                let ga = &l.groups[g0];
+                // A node of one group is tested as two, the second empty, so that the number
+                // of groups decides no branch of the AVX2 copy.
+                let (gb, fb) = if ng == 2 {
+                    (&l.groups[g0 + 1], l.faces[g0 + 1])
                 } else {
-                    for j in 0..ng {
-                        all |=
-                            r4.test(&l.groups[g0 + j], &l.faces[g0 + j], tmin, tmax).0 << (4 * j);
+                    (&Group::EMPTY, 0)
+                };
+                let all = if WIDE {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`).
+                    let m = unsafe { r4.test8((ga, gb), (l.faces[g0], fb), tmin, tmax) }.0;
+                    #[cfg(not(target_arch = "x86_64"))]
+                    let m = unreachable!("the AVX2 copy exists only on x86_64");
+                    m
+                } else {
+                    r4.test(ga, &l.faces[g0], tmin, tmax).0 | r4.test(gb, &fb, tmin, tmax).0 << 4
+                };
+                if STATS {
+                    stats.boxes += (ga.lanes + gb.lanes) as u64;
+                }
+                if ga.eager | gb.eager == 0 {
+                    mask = all;
+                } else {
+                    for (j, g) in [ga, gb].into_iter().enumerate() {
+                        let (m, run) = g.split_eager(all >> (4 * j) & 0xF);
+                        if let Some(run) = run {
+                            (ts, nt) = run;
+                        }
+                        mask |= m << (4 * j);
+                        first |= ((g.eager >> 4) as u32) << (4 * j);
                     }
                 }
-                for (j, g) in l.groups[g0..g0 + ng].iter().enumerate() {
-                    if STATS {
-                        stats.boxes += g.lanes as u64;
+                next = descend(&mut stack, l, mask, first, |i| {
+                    if i < 4 {
+                        ga.child[i]
+                    } else {
+                        gb.child[i & 3]
                     }
-                    let (m, run) = g.split_eager(all >> (4 * j) & 0xF);
-                    if let Some(run) = run {
-                        (ts, nt) = run;
-                    }
-                    mask |= m << (4 * j);
-                    first |= ((g.eager >> 4) as u32) << (4 * j);
-                    child[4 * j..4 * j + 4].copy_from_slice(&g.child);
-                }
-                next = descend(&mut stack, l, mask, first, &child);
+                });
             } else {
                 for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                     if STATS {
@@ -733,7 +739,9 @@ impl<'a> RayCaster<'a> {
                     if let Some(run) = run {
                         (ts, nt) = run;
                     }
-                    if let Some(c) = descend(&mut stack, l, mask, (g.eager >> 4) as u32, &g.child) {
+                    if let Some(c) =
+                        descend(&mut stack, l, mask, (g.eager >> 4) as u32, |i| g.child[i])
+                    {
                         stack.push(c);
                     }
                 }
@@ -844,9 +852,15 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += (gs[0].lanes + gs[1].lanes) as u64;
                 }
-                // SAFETY: `WIDE` is set only under AVX2 (`closest_avx2`); two groups and
-                // their face words.
-                let (mut mask, tn) = unsafe { r4.test8(gs, &l.faces[g0..g0 + 2], tmin, best_t) };
+                // SAFETY: `WIDE` is set only under AVX2 (`closest_avx2`).
+                let (mut mask, tn) = unsafe {
+                    r4.test8(
+                        (&gs[0], &gs[1]),
+                        (l.faces[g0], l.faces[g0 + 1]),
+                        tmin,
+                        best_t,
+                    )
+                };
                 while mask != 0 {
                     let i = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -894,9 +908,6 @@ fn has_avx2() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
-/// Reference of a lane without a child (never read: such lanes are not hit).
-const NONE_REF: u32 = u32::MAX;
-
 /// The hit lanes (`mask`) of a node for occlusion, in lane order: the lanes of `first` (pieces
 /// visited first) after the others, the highest of each set first. The lane to visit next is
 /// returned, the others are pushed so that they are popped in that order.
@@ -906,7 +917,7 @@ fn descend<const N: usize>(
     l: &Layout,
     mask: u32,
     first: u32,
-    child: &[u32],
+    child: impl Fn(usize) -> u32,
 ) -> Option<u32> {
     let (mut rest, mut last) = (mask & !first, mask & first);
     if last == 0 {
@@ -915,8 +926,8 @@ fn descend<const N: usize>(
     while rest != 0 {
         let i = rest.trailing_zeros() as usize;
         rest &= rest - 1;
-        l.prefetch(child[i]);
-        stack.push(child[i]);
+        l.prefetch(child(i));
+        stack.push(child(i));
     }
     if last == 0 {
         return None;
@@ -925,10 +936,10 @@ fn descend<const N: usize>(
         let i = last.trailing_zeros() as usize;
         last &= last - 1;
         if last == 0 {
-            return Some(child[i]);
+            return Some(child(i));
         }
-        l.prefetch(child[i]);
-        stack.push(child[i]);
+        l.prefetch(child(i));
+        stack.push(child(i));
     }
 }
 

@@ -476,8 +476,8 @@ fn group_test_equals_scalar_slab() {
             }
             let f2 = (g.next_u64() & 0x3F3F3F3F) as u32;
             let (m2, t2) = r4.test(&other, &f2, 0.0, 10.0);
-            // SAFETY: AVX was detected above; two groups and two face words.
-            let (m8, t8) = unsafe { r4.test8(&[grp, other], &[faces, f2], 0.0, 10.0) };
+            // SAFETY: AVX was detected above.
+            let (m8, t8) = unsafe { r4.test8((&grp, &other), (faces, f2), 0.0, 10.0) };
             assert_eq!(m8, mask | m2 << 4);
             for lane in 0..4 {
                 if mask >> lane & 1 == 1 {
@@ -574,7 +574,9 @@ fn stream_push_order_equals_single_ray_order() {
                 assert_eq!((pos[lane] as usize) < k, mask >> lane & 1 == 1);
             }
             let mut single: Stack<u32, 8> = Stack::new();
-            if let Some(c) = descend(&mut single, &layout::Layout::default(), mask, first, &child) {
+            if let Some(c) = descend(&mut single, &layout::Layout::default(), mask, first, |i| {
+                child[i]
+            }) {
                 single.push(c);
             }
             assert_eq!(single.top_mut(k), &stream[..k], "{mask:04b} {first:04b}");

@@ -85,8 +85,9 @@ impl Group {
     }
 }
 
-impl Default for Group {
-    fn default() -> Self {
+impl Group {
+    /// A group without lanes: inverted infinite boxes, never hit.
+    pub(in crate::ray) const EMPTY: Group = {
         let inf = f32::INFINITY;
         Group {
             b: [
@@ -100,6 +101,12 @@ impl Default for Group {
             eager: 0,
             run: 0,
         }
+    };
+}
+
+impl Default for Group {
+    fn default() -> Self {
+        Group::EMPTY
     }
 }
 

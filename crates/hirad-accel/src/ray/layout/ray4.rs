@@ -139,8 +139,8 @@ impl Ray4 {
         }
     }
 
-    /// [`Ray4::test`] of the two groups `g[0]`, `g[1]` of a node in one 8-wide AVX pass:
-    /// bit `i` (`4 + i`) of the mask is lane `i` of `g[0]` (`g[1]`). The same f32 operations
+    /// [`Ray4::test`] of the two groups `g0`, `g1` (face words `f0`, `f1`) in one 8-wide AVX
+    /// pass: bit `i` (`4 + i`) of the mask is lane `i` of `g0` (`g1`). The same f32 operations
     /// per lane as [`Ray4::test`], hence the same mask.
     ///
     /// Not itself compiled for AVX (a function with target features is not inlined into the
@@ -148,18 +148,17 @@ impl Ray4 {
     /// copies of the traversals, where its intrinsics are then compiled for AVX too.
     ///
     /// # Safety
-    /// The CPU must support AVX; `g` and `faces` hold two entries.
+    /// The CPU must support AVX.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub(in crate::ray) unsafe fn test8(
         &self,
-        g: &[Group],
-        faces: &[u32],
+        (g0, g1): (&Group, &Group),
+        (f0, f1): (u32, u32),
         tmin: f32,
         tmax: f32,
     ) -> (u32, [f32; 8]) {
         use core::arch::x86_64::*;
-        let (g0, g1) = (g.get_unchecked(0), g.get_unchecked(1));
         let mut tn = _mm256_set1_ps(tmin);
         let mut tf = _mm256_set1_ps(tmax);
         for a in 0..3 {
@@ -182,8 +181,7 @@ impl Ray4 {
         let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_mul_ps(tf, _mm256_set1_ps(BOX_SLACK)));
         let mut mask = _mm256_movemask_ps(hit) as u32;
         if self.in_plane != 0 {
-            mask &= !(self.flat_in_plane(g0, *faces.get_unchecked(0))
-                | self.flat_in_plane(g1, *faces.get_unchecked(1)) << 4);
+            mask &= !(self.flat_in_plane(g0, f0) | self.flat_in_plane(g1, f1) << 4);
         }
         let mut out = [0f32; 8];
         _mm256_storeu_ps(out.as_mut_ptr(), tn);
