@@ -193,7 +193,7 @@ impl Lane {
             self.len += mask.count_ones();
         }
         if nt > 0
-            && l.any_hit(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false)
+            && l.any_hit::<WIDE, _>(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false)
                 .is_some()
         {
             return Step::Hit;
@@ -260,9 +260,10 @@ struct Entry {
 /// and the watertight test never reports them (`Ray4::flat_in_plane`: a segment along a
 /// floor no longer visits every floor cell it passes).
 ///
-/// Where the CPU has AVX2 the single-ray queries run a copy of the traversal compiled for it,
-/// which tests the two groups of a node of five to eight lanes in one 8-wide pass (the same
-/// f32 operations per lane, hence the same masks). An occlusion query takes the hit children
+/// Where the CPU has AVX2 the queries run a copy of the traversal compiled for it, which tests
+/// the two groups of a node in one 8-wide pass (the same f32 operations per lane, hence the
+/// same masks) and, for occlusion, decides a packet of four triangles at once, hit distances
+/// in 4-wide f64 (`watertight::occluded4_avx`, the scalar test's operations). An occlusion query takes the hit children
 /// of a node in lane order, not by distance (as Embree's occlusion rays do: the sort cost more
 /// than the visits it saved, `docs/perf-log.md` 2026-12-05 (23)); the last is visited next
 /// without going through the stack; pieces of a node's run marked to be visited first are
@@ -747,7 +748,7 @@ impl<'a> RayCaster<'a> {
                 }
             }
             if nt > 0 {
-                let hit = l.any_hit(r, (ts, nt), tmin, tmax, &mut stats.tris, skip);
+                let hit = l.any_hit::<WIDE, _>(r, (ts, nt), tmin, tmax, &mut stats.tris, skip);
                 if hit.is_some() {
                     return hit;
                 }

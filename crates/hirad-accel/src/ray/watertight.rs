@@ -288,6 +288,101 @@ pub fn candidates4_at<const N: usize>(r: &RayPre, p: &[[f32; N]; 9], off: usize)
     }
 }
 
+/// [`intersect`]'s answer for occlusion on the four triangles of a [`Tri4`], with the hit
+/// distance of every lane computed at once in 4-wide f64: returns `(hit, unsure)`, where a
+/// lane of `hit` is one [`intersect`] reports as hit in `[tmin, tmax]` and a lane of `unsure`
+/// has an edge function of exactly zero (recomputed in f64 by [`intersect`], which must decide
+/// it). The same f32 and f64 operations in the same order as [`intersect`] (no fused
+/// multiply-adds), hence the same answers.
+///
+/// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
+/// `Ray4::test8`).
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32, u32) {
+    use core::arch::x86_64::*;
+    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr());
+    let ox = _mm_set1_ps(r.o[r.kx]);
+    let oy = _mm_set1_ps(r.o[r.ky]);
+    let oz = _mm_set1_ps(r.o[r.kz]);
+    let sx = _mm_set1_ps(r.sx);
+    let sy = _mm_set1_ps(r.sy);
+    let mut x = [_mm_setzero_ps(); 3];
+    let mut y = [_mm_setzero_ps(); 3];
+    for k in 0..3 {
+        let px = _mm_sub_ps(ld(3 * k + r.kx), ox);
+        let py = _mm_sub_ps(ld(3 * k + r.ky), oy);
+        let pz = _mm_sub_ps(ld(3 * k + r.kz), oz);
+        x[k] = _mm_sub_ps(px, _mm_mul_ps(sx, pz));
+        y[k] = _mm_sub_ps(py, _mm_mul_ps(sy, pz));
+    }
+    let u = _mm_sub_ps(_mm_mul_ps(x[2], y[1]), _mm_mul_ps(y[2], x[1]));
+    let v = _mm_sub_ps(_mm_mul_ps(x[0], y[2]), _mm_mul_ps(y[0], x[2]));
+    let w = _mm_sub_ps(_mm_mul_ps(x[1], y[0]), _mm_mul_ps(y[1], x[0]));
+    let z = _mm_setzero_ps();
+    let zero = _mm_or_ps(
+        _mm_or_ps(_mm_cmpeq_ps(u, z), _mm_cmpeq_ps(v, z)),
+        _mm_cmpeq_ps(w, z),
+    );
+    let neg = _mm_or_ps(
+        _mm_or_ps(_mm_cmplt_ps(u, z), _mm_cmplt_ps(v, z)),
+        _mm_cmplt_ps(w, z),
+    );
+    let pos = _mm_or_ps(
+        _mm_or_ps(_mm_cmpgt_ps(u, z), _mm_cmpgt_ps(v, z)),
+        _mm_cmpgt_ps(w, z),
+    );
+    let zero_m = _mm_movemask_ps(zero) as u32;
+    let inside = !(_mm_movemask_ps(_mm_and_ps(neg, pos)) as u32) & !zero_m & 0xF;
+    if inside == 0 {
+        return (0, zero_m);
+    }
+    let det = _mm_add_ps(_mm_add_ps(u, v), w);
+    let det_ok = !(_mm_movemask_ps(_mm_cmpeq_ps(det, z)) as u32);
+    // The hit distance from the plane equation in f64, as `intersect` computes it.
+    let f = |row: usize| _mm256_cvtps_pd(ld(row));
+    let (v0, v1, v2) = ([f(0), f(1), f(2)], [f(3), f(4), f(5)], [f(6), f(7), f(8)]);
+    let e1 = [
+        _mm256_sub_pd(v1[0], v0[0]),
+        _mm256_sub_pd(v1[1], v0[1]),
+        _mm256_sub_pd(v1[2], v0[2]),
+    ];
+    let e2 = [
+        _mm256_sub_pd(v2[0], v0[0]),
+        _mm256_sub_pd(v2[1], v0[1]),
+        _mm256_sub_pd(v2[2], v0[2]),
+    ];
+    let n = [
+        _mm256_sub_pd(_mm256_mul_pd(e1[1], e2[2]), _mm256_mul_pd(e1[2], e2[1])),
+        _mm256_sub_pd(_mm256_mul_pd(e1[2], e2[0]), _mm256_mul_pd(e1[0], e2[2])),
+        _mm256_sub_pd(_mm256_mul_pd(e1[0], e2[1]), _mm256_mul_pd(e1[1], e2[0])),
+    ];
+    let o = |a: usize| _mm256_set1_pd(r.o[a] as f64);
+    let d = |a: usize| _mm256_set1_pd(r.d[a] as f64);
+    let num = _mm256_add_pd(
+        _mm256_add_pd(
+            _mm256_mul_pd(n[0], _mm256_sub_pd(v0[0], o(0))),
+            _mm256_mul_pd(n[1], _mm256_sub_pd(v0[1], o(1))),
+        ),
+        _mm256_mul_pd(n[2], _mm256_sub_pd(v0[2], o(2))),
+    );
+    let den = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(n[0], d(0)), _mm256_mul_pd(n[1], d(1))),
+        _mm256_mul_pd(n[2], d(2)),
+    );
+    let t = _mm256_cvtpd_ps(_mm256_div_pd(num, den));
+    // Ordered comparisons: a NaN distance is no hit.
+    let in_range = _mm_and_ps(
+        _mm_cmpge_ps(t, _mm_set1_ps(tmin)),
+        _mm_cmple_ps(t, _mm_set1_ps(tmax)),
+    );
+    let hit = inside & det_ok & _mm_movemask_ps(in_range) as u32;
+    (hit, zero_m)
+}
+
 /// [`candidates4`] for the sixteen triangles of a [`Tri16`] in one pass of AVX-512 (the same
 /// f32 operations in the same order, without fused multiply-adds: bit-identical edge
 /// functions, the same mask as four calls of [`candidates4_at`]).
@@ -418,6 +513,55 @@ mod tests {
             }
             // Both kinds of lanes occur: candidates the scalar test rejects, and hits.
             assert!(set > 10_000 && zero_lanes > 500, "{set} {zero_lanes}");
+        }
+    }
+
+    #[test]
+    fn four_lane_occlusion_test_equals_scalar_test() {
+        // `occluded4_avx` answers as `intersect` in every lane without an edge function of
+        // exactly zero, on random rays and triangles with coordinates on a coarse grid (so
+        // that zero edge functions, hit distances exactly at the range's ends and rays in a
+        // triangle's plane occur).
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            let mut g = hirad_core::rng::SplitMix64::new(17);
+            let c = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 7) as f32 * 0.5 - 1.5;
+            let (mut hits, mut misses, mut unsure, mut at_ends) = (0, 0, 0, 0);
+            for i in 0..20000 {
+                let o = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+                let d = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+                let Some(r) = RayPre::new(o, d) else { continue };
+                let mut p: Tri4 = [[0.0; 4]; 9];
+                for row in p.iter_mut() {
+                    for x in row.iter_mut() {
+                        *x = c(&mut g);
+                    }
+                }
+                let (tmin, tmax) = if i % 2 == 0 { (0.5, 1.0) } else { (0.0, 2.0) };
+                // SAFETY: AVX was detected above.
+                let (hit, zero) = unsafe { occluded4_avx(&r, &p, tmin, tmax) };
+                for lane in 0..4 {
+                    let t = tri_of(&p, lane);
+                    let want = intersect(&r, &t, tmin, tmax);
+                    if zero >> lane & 1 == 1 {
+                        assert_eq!(hit >> lane & 1, 0);
+                        unsure += 1;
+                        continue;
+                    }
+                    assert_eq!(hit >> lane & 1 == 1, want.is_some(), "{o} {d} {t:?}");
+                    if let Some((th, _, _)) = want {
+                        at_ends += (th == tmin || th == tmax) as u32;
+                        hits += 1;
+                    } else {
+                        misses += 1;
+                    }
+                }
+            }
+            assert!(
+                hits > 1000 && misses > 20000 && unsure > 500,
+                "{hits} {misses} {unsure}"
+            );
+            assert!(at_ends > 50, "{at_ends}");
         }
     }
 

@@ -2,6 +2,8 @@
 //! structure-of-arrays form, and the tests of a triangle run (SIMD candidate masks, then the
 //! scalar watertight test; AVX-512 for wide packets where the CPU has it).
 
+#[cfg(target_arch = "x86_64")]
+use super::super::watertight::occluded4_avx;
 use super::super::watertight::{
     candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4,
 };
@@ -73,8 +75,11 @@ pub(in crate::ray) fn lane_mask<const W: usize>(n: usize, k: usize) -> u32 {
 impl Layout {
     /// A triangle of the run `(ps, n)` that `skip` does not leave out and that is hit in
     /// `[tmin, tmax]` (its id), if any. Adds the triangles tested to `*tested`.
+    ///
+    /// `AVX`: the packets of four are decided by [`occluded4_avx`] (only in the AVX2 copies of
+    /// the traversals).
     #[inline(always)]
-    pub(in crate::ray) fn any_hit<F: Fn(u32) -> bool>(
+    pub(in crate::ray) fn any_hit<const AVX: bool, F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
         (ps, n): (usize, usize),
@@ -90,6 +95,23 @@ impl Layout {
             let p = &self.packets[ps + k];
             let valid = lane_mask::<4>(n, k);
             *tested += valid.count_ones() as u64;
+            #[cfg(target_arch = "x86_64")]
+            if AVX {
+                // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
+                let (hit, unsure) = unsafe { occluded4_avx(r, &p.v, tmin, tmax) };
+                let mut m = (hit | unsure) & valid;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if !skip(p.id[i])
+                        && (hit >> i & 1 == 1
+                            || intersect(r, &tri_of(&p.v, i), tmin, tmax).is_some())
+                    {
+                        return Some(p.id[i]);
+                    }
+                }
+                continue;
+            }
             let hit = any_of(
                 r,
                 &p.v,
