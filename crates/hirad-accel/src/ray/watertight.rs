@@ -221,44 +221,12 @@ pub fn candidates4_at<const N: usize>(r: &RayPre, p: &[[f32; N]; 9], off: usize)
     assert!(off + 4 <= N);
     #[cfg(target_arch = "x86_64")]
     {
-        use core::arch::x86_64::*;
-        // SAFETY: SSE is part of the x86_64 baseline; unaligned loads of four f32 at
-        // `off..off + 4`, inside every row (asserted above).
+        // SAFETY: SSE is part of the x86_64 baseline; lanes `off..off + 4` lie inside every
+        // row (asserted above).
         #[allow(unused_unsafe)]
         unsafe {
-            let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr().add(off));
-            let ox = _mm_set1_ps(r.o[r.kx]);
-            let oy = _mm_set1_ps(r.o[r.ky]);
-            let oz = _mm_set1_ps(r.o[r.kz]);
-            let sx = _mm_set1_ps(r.sx);
-            let sy = _mm_set1_ps(r.sy);
-            let mut x = [_mm_setzero_ps(); 3];
-            let mut y = [_mm_setzero_ps(); 3];
-            for k in 0..3 {
-                let px = _mm_sub_ps(ld(3 * k + r.kx), ox);
-                let py = _mm_sub_ps(ld(3 * k + r.ky), oy);
-                let pz = _mm_sub_ps(ld(3 * k + r.kz), oz);
-                x[k] = _mm_sub_ps(px, _mm_mul_ps(sx, pz));
-                y[k] = _mm_sub_ps(py, _mm_mul_ps(sy, pz));
-            }
-            let u = _mm_sub_ps(_mm_mul_ps(x[2], y[1]), _mm_mul_ps(y[2], x[1]));
-            let v = _mm_sub_ps(_mm_mul_ps(x[0], y[2]), _mm_mul_ps(y[0], x[2]));
-            let w = _mm_sub_ps(_mm_mul_ps(x[1], y[0]), _mm_mul_ps(y[1], x[0]));
-            let z = _mm_setzero_ps();
-            let zero = _mm_or_ps(
-                _mm_or_ps(_mm_cmpeq_ps(u, z), _mm_cmpeq_ps(v, z)),
-                _mm_cmpeq_ps(w, z),
-            );
-            let neg = _mm_or_ps(
-                _mm_or_ps(_mm_cmplt_ps(u, z), _mm_cmplt_ps(v, z)),
-                _mm_cmplt_ps(w, z),
-            );
-            let pos = _mm_or_ps(
-                _mm_or_ps(_mm_cmpgt_ps(u, z), _mm_cmpgt_ps(v, z)),
-                _mm_cmpgt_ps(w, z),
-            );
-            let mixed = _mm_movemask_ps(_mm_and_ps(neg, pos)) as u32;
-            (!mixed | _mm_movemask_ps(zero) as u32) & 0xF
+            let (_, mixed, zero) = edges4(r, p, off);
+            (!mixed | zero) & 0xF
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
@@ -288,23 +256,21 @@ pub fn candidates4_at<const N: usize>(r: &RayPre, p: &[[f32; N]; 9], off: usize)
     }
 }
 
-/// [`intersect`]'s answer for occlusion on the four triangles of a [`Tri4`], with the hit
-/// distance of every lane computed at once in 4-wide f64: returns `(hit, unsure)`, where a
-/// lane of `hit` is one [`intersect`] reports as hit in `[tmin, tmax]` and a lane of `unsure`
-/// has an edge function of exactly zero (recomputed in f64 by [`intersect`], which must decide
-/// it). The same f32 and f64 operations in the same order as [`intersect`] (no fused
-/// multiply-adds), hence the same answers.
-///
-/// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
-/// `Ray4::test8`).
+/// The sheared edge functions `[u, v, w]` of [`intersect`] for lanes `off..off + 4` of a
+/// structure-of-arrays block (the same f32 operations in the same order), with the masks of
+/// the lanes whose signs are mixed and of those with an edge function of exactly zero.
 ///
 /// # Safety
-/// The CPU must support AVX.
+/// `off + 4 <= N` (SSE is part of the x86_64 baseline).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32, u32) {
+unsafe fn edges4<const N: usize>(
+    r: &RayPre,
+    p: &[[f32; N]; 9],
+    off: usize,
+) -> ([core::arch::x86_64::__m128; 3], u32, u32) {
     use core::arch::x86_64::*;
-    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr());
+    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr().add(off));
     let ox = _mm_set1_ps(r.o[r.kx]);
     let oy = _mm_set1_ps(r.o[r.ky]);
     let oz = _mm_set1_ps(r.o[r.kz]);
@@ -335,13 +301,37 @@ pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32,
         _mm_or_ps(_mm_cmpgt_ps(u, z), _mm_cmpgt_ps(v, z)),
         _mm_cmpgt_ps(w, z),
     );
-    let zero_m = _mm_movemask_ps(zero) as u32;
-    let inside = !(_mm_movemask_ps(_mm_and_ps(neg, pos)) as u32) & !zero_m & 0xF;
+    (
+        [u, v, w],
+        _mm_movemask_ps(_mm_and_ps(neg, pos)) as u32,
+        _mm_movemask_ps(zero) as u32,
+    )
+}
+
+/// [`intersect`]'s answer for occlusion on the four triangles of a [`Tri4`], with the hit
+/// distance of every lane computed at once in 4-wide f64: returns `(hit, unsure)`, where a
+/// lane of `hit` is one [`intersect`] reports as hit in `[tmin, tmax]` and a lane of `unsure`
+/// has an edge function of exactly zero (recomputed in f64 by [`intersect`], which must decide
+/// it). The same f32 and f64 operations in the same order as [`intersect`] (no fused
+/// multiply-adds), hence the same answers.
+///
+/// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
+/// `Ray4::test8`).
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32, u32) {
+    use core::arch::x86_64::*;
+    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr());
+    let ([u, v, w], mixed, zero_m) = edges4(r, p, 0);
+    let inside = !mixed & !zero_m & 0xF;
     if inside == 0 {
         return (0, zero_m);
     }
     let det = _mm_add_ps(_mm_add_ps(u, v), w);
-    let det_ok = !(_mm_movemask_ps(_mm_cmpeq_ps(det, z)) as u32);
+    let det_ok = !(_mm_movemask_ps(_mm_cmpeq_ps(det, _mm_setzero_ps())) as u32);
     // The hit distance from the plane equation in f64, as `intersect` computes it.
     let f = |row: usize| _mm256_cvtps_pd(ld(row));
     let (v0, v1, v2) = ([f(0), f(1), f(2)], [f(3), f(4), f(5)], [f(6), f(7), f(8)]);
