@@ -141,7 +141,7 @@ struct Lane {
 
 impl Lane {
     /// Visit the next node of this ray (the same work as one iteration of
-    /// `occluded_impl`).
+    /// `RayCaster::occluded_loop`).
     #[inline(always)]
     fn step<const WIDE: bool>(&mut self, l: &Layout) -> Step {
         if self.len == 0 {
@@ -263,17 +263,18 @@ struct Entry {
 /// Where the CPU has AVX2 the queries run a copy of the traversal compiled for it, which tests
 /// the two groups of a node in one 8-wide pass (the same f32 operations per lane, hence the
 /// same masks) and, for occlusion, decides a packet of four triangles at once, hit distances
-/// in 4-wide f64 (`watertight::occluded4_avx`, the scalar test's operations). An occlusion query takes the hit children
-/// of a node in lane order, not by distance (as Embree's occlusion rays do: the sort cost more
-/// than the visits it saved, `docs/perf-log.md` 2026-12-05 (23)); the last is visited next
-/// without going through the stack; pieces of a node's run marked to be visited first are
-/// taken before the other lanes. Closest-hit queries push every hit child, nearest on top, and
-/// skip entries farther than the current hit. Batch occlusion ([`RayCaster::occluded_stream`], used by [`RayCaster::count_occluded`] and
-/// [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in flight per thread and visits one
-/// node of each in turn, so that the memory latency of one ray's next node (prefetched at the
-/// end of the step before) overlaps with work on the others; it places the hit children on
-/// its stack at positions looked up without branches (`PUSH_ORDER`: the order of the
-/// single-ray traversal). Counters ([`RayStats`]) are
+/// in 4-wide f64 (`watertight::occluded4_avx`, the scalar test's operations). An occlusion
+/// query takes the hit children of a node in lane order, not by distance (as Embree's
+/// occlusion rays do: the sort cost more than the visits it saved, `docs/perf-log.md`
+/// 2026-12-05 (23)); the last is visited next without going through the stack; pieces of a
+/// node's run marked to be visited first are taken before the other lanes. Closest-hit
+/// queries push every hit child, nearest on top, and skip entries farther than the current
+/// hit. Batch occlusion ([`RayCaster::occluded_stream`], used by
+/// [`RayCaster::count_occluded`] and [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in
+/// flight per thread and visits one node of each in turn, so that the memory latency of one
+/// ray's next node (prefetched at the end of the step before) overlaps with work on the
+/// others; it places the hit children on its stack at positions looked up without branches
+/// (`PUSH_ORDER`: the order of the single-ray traversal). Counters ([`RayStats`]) are
 /// compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
 /// no counting cost.
 pub struct RayCaster<'a> {
@@ -643,7 +644,8 @@ impl<'a> RayCaster<'a> {
         self.occluded_loop::<STATS, false, F>(&r, root, tmin, tmax, stats, skip)
     }
 
-    /// [`RayCaster::occluded_loop`] compiled for AVX2, with 8-wide box tests.
+    /// [`RayCaster::occluded_loop`] compiled for AVX2, with 8-wide box tests and the packet
+    /// test of `watertight::occluded4_avx`.
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -662,8 +664,8 @@ impl<'a> RayCaster<'a> {
     }
 
     /// The traversal of an occlusion query from `root`, whose box the ray hits. `WIDE`: the
-    /// two groups of an eight-lane node are tested in one AVX pass (only in
-    /// [`RayCaster::occluded_avx2`]).
+    /// two groups of a node are tested in one AVX pass and packets of four triangles decided
+    /// at once (only in [`RayCaster::occluded_avx2`]).
     #[inline(always)]
     fn occluded_loop<const STATS: bool, const WIDE: bool, F: Fn(u32) -> bool>(
         &self,
