@@ -262,8 +262,8 @@ struct Entry {
 ///
 /// Where the CPU has AVX2 the queries run a copy of the traversal compiled for it, which tests
 /// the two groups of a node in one 8-wide pass (the same f32 operations per lane, hence the
-/// same masks) and, for occlusion, decides a packet of four triangles at once, hit distances
-/// in 4-wide f64 (`watertight::occluded4_avx`, the scalar test's operations). An occlusion
+/// same masks) and decides a packet of four triangles at once, hit distances in 4-wide f64
+/// (`watertight::hits4_avx`, the scalar test's operations). An occlusion
 /// query takes the hit children of a node in lane order, not by distance (as Embree's
 /// occlusion rays do: the sort cost more than the visits it saved, `docs/perf-log.md`
 /// 2026-12-05 (23)); the last is visited next without going through the stack; pieces of a
@@ -789,7 +789,8 @@ impl<'a> RayCaster<'a> {
         self.closest_loop::<STATS, false>(&r, (root, t0), tmin, tmax, stats)
     }
 
-    /// [`RayCaster::closest_loop`] compiled for AVX2, with 8-wide box tests.
+    /// [`RayCaster::closest_loop`] compiled for AVX2, with 8-wide box tests and the packet
+    /// test of `watertight::hits4_avx`.
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -833,7 +834,7 @@ impl<'a> RayCaster<'a> {
                 stats.tris += nt as u64;
             }
             if nt > 0 {
-                l.closest_hit(r, ts, nt, tmin, &mut best_t, &mut best);
+                l.closest_hit::<WIDE>(r, ts, nt, tmin, &mut best_t, &mut best);
             }
             if ng == 1 {
                 let g = &l.groups[g0];

@@ -323,12 +323,48 @@ unsafe fn edges4<const N: usize>(
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32, u32) {
+    let h = hits4_avx(r, p, tmin, tmax);
+    (h.hit, h.unsure)
+}
+
+/// What [`hits4_avx`] finds for the four lanes of a packet.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct Hits4 {
+    /// Lanes [`intersect`] reports as hit in `[tmin, tmax]`.
+    pub hit: u32,
+    /// Lanes with an edge function of exactly zero, which [`intersect`] must decide.
+    pub unsure: u32,
+    /// Per lane, [`intersect`]'s `(t, u, v)` (meaningful in `hit` lanes).
+    pub t: [f32; 4],
+    /// Barycentric coordinate of vertex 1.
+    pub u: [f32; 4],
+    /// Barycentric coordinate of vertex 2.
+    pub v: [f32; 4],
+}
+
+/// [`intersect`] for the four lanes of a packet at once, as [`occluded4_avx`] (which it
+/// serves) and with the hit distances and barycentric coordinates of every lane (the same
+/// operations as [`intersect`]).
+///
+/// # Safety
+/// The CPU must support AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn hits4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> Hits4 {
     use core::arch::x86_64::*;
     let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr());
     let ([u, v, w], mixed, zero_m) = edges4(r, p, 0);
     let inside = !mixed & !zero_m & 0xF;
+    let mut out = Hits4 {
+        hit: 0,
+        unsure: zero_m,
+        t: [0.0; 4],
+        u: [0.0; 4],
+        v: [0.0; 4],
+    };
     if inside == 0 {
-        return (0, zero_m);
+        return out;
     }
     let det = _mm_add_ps(_mm_add_ps(u, v), w);
     let det_ok = !(_mm_movemask_ps(_mm_cmpeq_ps(det, _mm_setzero_ps())) as u32);
@@ -369,8 +405,12 @@ pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32,
         _mm_cmpge_ps(t, _mm_set1_ps(tmin)),
         _mm_cmple_ps(t, _mm_set1_ps(tmax)),
     );
-    let hit = inside & det_ok & _mm_movemask_ps(in_range) as u32;
-    (hit, zero_m)
+    out.hit = inside & det_ok & _mm_movemask_ps(in_range) as u32;
+    let rcp = _mm_div_ps(_mm_set1_ps(1.0), det);
+    _mm_storeu_ps(out.t.as_mut_ptr(), t);
+    _mm_storeu_ps(out.u.as_mut_ptr(), _mm_mul_ps(v, rcp));
+    _mm_storeu_ps(out.v.as_mut_ptr(), _mm_mul_ps(w, rcp));
+    out
 }
 
 /// [`candidates4`] for the sixteen triangles of a [`Tri16`] in one pass of AVX-512 (the same
@@ -507,9 +547,9 @@ mod tests {
     }
 
     #[test]
-    fn four_lane_occlusion_test_equals_scalar_test() {
+    fn four_lane_packet_test_equals_scalar_test() {
         // `occluded4_avx` answers as `intersect` in every lane without an edge function of
-        // exactly zero, on random rays and triangles with coordinates on a coarse grid (so
+        // exactly zero, and `hits4_avx` gives its hit distance and barycentric coordinates, on random rays and triangles with coordinates on a coarse grid (so
         // that zero edge functions, hit distances exactly at the range's ends and rays in a
         // triangle's plane occur).
         #[cfg(target_arch = "x86_64")]
@@ -530,6 +570,9 @@ mod tests {
                 let (tmin, tmax) = if i % 2 == 0 { (0.5, 1.0) } else { (0.0, 2.0) };
                 // SAFETY: AVX was detected above.
                 let (hit, zero) = unsafe { occluded4_avx(&r, &p, tmin, tmax) };
+                // SAFETY: as above.
+                let h = unsafe { hits4_avx(&r, &p, tmin, tmax) };
+                assert_eq!((h.hit, h.unsure), (hit, zero));
                 for lane in 0..4 {
                     let t = tri_of(&p, lane);
                     let want = intersect(&r, &t, tmin, tmax);
@@ -539,7 +582,8 @@ mod tests {
                         continue;
                     }
                     assert_eq!(hit >> lane & 1 == 1, want.is_some(), "{o} {d} {t:?}");
-                    if let Some((th, _, _)) = want {
+                    if let Some((th, u, v)) = want {
+                        assert_eq!((h.t[lane], h.u[lane], h.v[lane]), (th, u, v));
                         at_ends += (th == tmin || th == tmax) as u32;
                         hits += 1;
                     } else {

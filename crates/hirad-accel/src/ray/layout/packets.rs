@@ -2,11 +2,11 @@
 //! structure-of-arrays form, and the tests of a triangle run (SIMD candidate masks, then the
 //! scalar watertight test; AVX-512 for wide packets where the CPU has it).
 
-#[cfg(target_arch = "x86_64")]
-use super::super::watertight::occluded4_avx;
 use super::super::watertight::{
     candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4,
 };
+#[cfg(target_arch = "x86_64")]
+use super::super::watertight::{hits4_avx, occluded4_avx};
 use super::Layout;
 
 /// Shortest triangle run stored in [`Wide`] packets.
@@ -129,8 +129,11 @@ impl Layout {
 
     /// Closest hit among the triangles of the run `(ps, n)` nearer than `*best_t`: updates
     /// `*best_t` and `*best = (triangle id, u, v)`; equal distances keep the lowest id.
+    ///
+    /// `AVX`: the packets of four are tested by [`hits4_avx`] (only in the AVX2 copies of the
+    /// traversals).
     #[inline(always)]
-    pub(in crate::ray) fn closest_hit(
+    pub(in crate::ray) fn closest_hit<const AVX: bool>(
         &self,
         r: &RayPre,
         ps: usize,
@@ -150,6 +153,27 @@ impl Layout {
         }
         for k in 0..n.div_ceil(4) {
             let p = &self.packets[ps + k];
+            #[cfg(target_arch = "x86_64")]
+            if AVX {
+                // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
+                let h = unsafe { hits4_avx(r, &p.v, tmin, *best_t) };
+                let valid = lane_mask::<4>(n, k);
+                let mut m = (h.hit | h.unsure) & valid;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    // `intersect` with the current `best_t`, as `closest_of` calls it.
+                    let found = if h.hit >> i & 1 == 1 {
+                        (h.t[i] <= *best_t).then_some((h.t[i], h.u[i], h.v[i]))
+                    } else {
+                        intersect(r, &tri_of(&p.v, i), tmin, *best_t)
+                    };
+                    if let Some(x) = found {
+                        take_closer(best_t, best, p.id[i], x);
+                    }
+                }
+                continue;
+            }
             let m = candidates4(r, &p.v) & lane_mask::<4>(n, k);
             closest_of(r, &p.v, &p.id, m, tmin, best_t, best);
         }
@@ -180,6 +204,26 @@ impl Layout {
             }
         }
         None
+    }
+}
+
+/// Keep hit `(t, u, v)` of triangle `id` (found within `[tmin, *best_t]`) when it is nearer than
+/// the best so far, or as near with a lower id.
+#[inline(always)]
+fn take_closer(
+    best_t: &mut f32,
+    best: &mut Option<(u32, f32, f32)>,
+    id: u32,
+    (t, u, v): (f32, f32, f32),
+) {
+    let better = match *best {
+        None => true,
+        Some(_) if t < *best_t => true,
+        Some((bid, _, _)) => id < bid,
+    };
+    if better {
+        *best_t = t;
+        *best = Some((id, u, v));
     }
 }
 
@@ -235,17 +279,8 @@ pub(super) fn closest_of<const N: usize>(
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
-        if let Some((t, u, w)) = intersect(r, &tri_of(v, i), tmin, *best_t) {
-            let id = ids[i];
-            let better = match *best {
-                None => true,
-                Some(_) if t < *best_t => true,
-                Some((bid, _, _)) => id < bid,
-            };
-            if better {
-                *best_t = t;
-                *best = Some((id, u, w));
-            }
+        if let Some(x) = intersect(r, &tri_of(v, i), tmin, *best_t) {
+            take_closer(best_t, best, ids[i], x);
         }
     }
 }
