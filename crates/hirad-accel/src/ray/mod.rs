@@ -645,7 +645,7 @@ impl<'a> RayCaster<'a> {
     }
 
     /// [`RayCaster::occluded_loop`] compiled for AVX2, with 8-wide box tests and the packet
-    /// test of `watertight::occluded4_avx`.
+    /// test of `watertight::hits4_avx`.
     ///
     /// # Safety
     /// The CPU must support AVX2.

@@ -308,25 +308,6 @@ unsafe fn edges4<const N: usize>(
     )
 }
 
-/// [`intersect`]'s answer for occlusion on the four triangles of a [`Tri4`], with the hit
-/// distance of every lane computed at once in 4-wide f64: returns `(hit, unsure)`, where a
-/// lane of `hit` is one [`intersect`] reports as hit in `[tmin, tmax]` and a lane of `unsure`
-/// has an edge function of exactly zero (recomputed in f64 by [`intersect`], which must decide
-/// it). The same f32 and f64 operations in the same order as [`intersect`] (no fused
-/// multiply-adds), hence the same answers.
-///
-/// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
-/// `Ray4::test8`).
-///
-/// # Safety
-/// The CPU must support AVX.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-pub unsafe fn occluded4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> (u32, u32) {
-    let h = hits4_avx(r, p, tmin, tmax);
-    (h.hit, h.unsure)
-}
-
 /// What [`hits4_avx`] finds for the four lanes of a packet.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
@@ -343,9 +324,14 @@ pub struct Hits4 {
     pub v: [f32; 4],
 }
 
-/// [`intersect`] for the four lanes of a packet at once, as [`occluded4_avx`] (which it
-/// serves) and with the hit distances and barycentric coordinates of every lane (the same
-/// operations as [`intersect`]).
+/// [`intersect`] for the four triangles of a [`Tri4`] at once: edge functions in f32 and the hit
+/// distances of all four lanes in 4-wide f64, the same operations in the same order as
+/// [`intersect`] (no fused multiply-adds), hence the same answers. Lanes with an edge function
+/// of exactly zero (recomputed in f64 by [`intersect`]) are left to [`intersect`]
+/// ([`Hits4::unsure`]).
+///
+/// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
+/// `Ray4::test8`).
 ///
 /// # Safety
 /// The CPU must support AVX.
@@ -548,10 +534,10 @@ mod tests {
 
     #[test]
     fn four_lane_packet_test_equals_scalar_test() {
-        // `occluded4_avx` answers as `intersect` in every lane without an edge function of
-        // exactly zero, and `hits4_avx` gives its hit distance and barycentric coordinates, on random rays and triangles with coordinates on a coarse grid (so
-        // that zero edge functions, hit distances exactly at the range's ends and rays in a
-        // triangle's plane occur).
+        // `hits4_avx` answers as `intersect` (hit, distance, barycentric coordinates) in every
+        // lane without an edge function of exactly zero, on random rays and triangles with
+        // coordinates on a coarse grid (so that zero edge functions, hit distances exactly at
+        // the range's ends and rays in a triangle's plane occur).
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             let mut g = hirad_core::rng::SplitMix64::new(17);
@@ -569,10 +555,8 @@ mod tests {
                 }
                 let (tmin, tmax) = if i % 2 == 0 { (0.5, 1.0) } else { (0.0, 2.0) };
                 // SAFETY: AVX was detected above.
-                let (hit, zero) = unsafe { occluded4_avx(&r, &p, tmin, tmax) };
-                // SAFETY: as above.
                 let h = unsafe { hits4_avx(&r, &p, tmin, tmax) };
-                assert_eq!((h.hit, h.unsure), (hit, zero));
+                let (hit, zero) = (h.hit, h.unsure);
                 for lane in 0..4 {
                     let t = tri_of(&p, lane);
                     let want = intersect(&r, &t, tmin, tmax);

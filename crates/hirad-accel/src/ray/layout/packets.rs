@@ -6,7 +6,7 @@ use super::super::watertight::{
     candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4,
 };
 #[cfg(target_arch = "x86_64")]
-use super::super::watertight::{hits4_avx, occluded4_avx};
+use super::super::watertight::{hits4_avx, Hits4};
 use super::Layout;
 
 /// Shortest triangle run stored in [`Wide`] packets.
@@ -76,8 +76,8 @@ impl Layout {
     /// A triangle of the run `(ps, n)` that `skip` does not leave out and that is hit in
     /// `[tmin, tmax]` (its id), if any. Adds the triangles tested to `*tested`.
     ///
-    /// `AVX`: the packets of four are decided by [`occluded4_avx`] (only in the AVX2 copies of
-    /// the traversals).
+    /// `AVX`: the packets of four are decided by [`hits4_avx`] (only in the AVX2 copies of the
+    /// traversals).
     #[inline(always)]
     pub(in crate::ray) fn any_hit<const AVX: bool, F: Fn(u32) -> bool>(
         &self,
@@ -98,15 +98,12 @@ impl Layout {
             #[cfg(target_arch = "x86_64")]
             if AVX {
                 // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
-                let (hit, unsure) = unsafe { occluded4_avx(r, &p.v, tmin, tmax) };
-                let mut m = (hit | unsure) & valid;
+                let h = unsafe { hits4_avx(r, &p.v, tmin, tmax) };
+                let mut m = (h.hit | h.unsure) & valid;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if !skip(p.id[i])
-                        && (hit >> i & 1 == 1
-                            || intersect(r, &tri_of(&p.v, i), tmin, tmax).is_some())
-                    {
+                    if !skip(p.id[i]) && lane_hit(r, p, &h, i, (tmin, tmax)).is_some() {
                         return Some(p.id[i]);
                     }
                 }
@@ -162,13 +159,8 @@ impl Layout {
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    // `intersect` with the current `best_t`, as `closest_of` calls it.
-                    let found = if h.hit >> i & 1 == 1 {
-                        (h.t[i] <= *best_t).then_some((h.t[i], h.u[i], h.v[i]))
-                    } else {
-                        intersect(r, &tri_of(&p.v, i), tmin, *best_t)
-                    };
-                    if let Some(x) = found {
+                    // With the current `best_t`, as `closest_of` calls `intersect`.
+                    if let Some(x) = lane_hit(r, p, &h, i, (tmin, *best_t)) {
                         take_closer(best_t, best, p.id[i], x);
                     }
                 }
@@ -204,6 +196,25 @@ impl Layout {
             }
         }
         None
+    }
+}
+
+/// [`intersect`]'s answer for lane `i` of packet `p` in `[tmin, tmax]`, from the packet test `h`
+/// of `p` (made with a range containing this one) or, for a lane it left unsure, from
+/// [`intersect`] itself.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn lane_hit(
+    r: &RayPre,
+    p: &Packet,
+    h: &Hits4,
+    i: usize,
+    (tmin, tmax): (f32, f32),
+) -> Option<(f32, f32, f32)> {
+    if h.hit >> i & 1 == 1 {
+        (h.t[i] <= tmax).then_some((h.t[i], h.u[i], h.v[i]))
+    } else {
+        intersect(r, &tri_of(&p.v, i), tmin, tmax)
     }
 }
 
