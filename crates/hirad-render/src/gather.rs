@@ -15,6 +15,7 @@
 //! cache point from one of its own; rows are rendered in parallel and the image does not
 //! depend on the number of threads.
 
+mod adaptive;
 mod bright;
 mod cache;
 mod lookup;
@@ -24,6 +25,7 @@ pub use lookup::{Lookup, SolutionLookup};
 use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
 use crate::sample::{cosine_sample, power_heuristic, surface_eps, Lights};
+use adaptive::Spread;
 use bright::Bright;
 use cache::Cache;
 use glam::{DVec3, Vec3};
@@ -66,6 +68,12 @@ pub struct GatherOptions {
     /// 0: every sample gathers its own (and what a record written before the cache reads).
     #[serde(default)]
     pub cache: u32,
+    /// Adaptive sampling: after every pixel's `rays` samples, about this many times `rays`
+    /// more per pixel on average, given to the pixels whose neighbours' samples spread most in
+    /// lightness (`gather/adaptive.rs`); 0: every pixel takes `rays` (and what a record
+    /// written before it reads).
+    #[serde(default)]
+    pub adaptive: f32,
 }
 
 impl Default for GatherOptions {
@@ -78,6 +86,7 @@ impl Default for GatherOptions {
             bright: 16.0,
             near: 2.0,
             cache: 2,
+            adaptive: 0.5,
         }
     }
 }
@@ -106,6 +115,12 @@ pub struct GatherStats {
     /// Pixel samples whose indirect light came from the cache.
     #[serde(default)]
     pub cached: u64,
+    /// Extra samples of adaptive sampling ([`GatherOptions::adaptive`]), in all.
+    #[serde(default)]
+    pub adaptive_samples: u64,
+    /// Pixels that took extra samples.
+    #[serde(default)]
+    pub adaptive_pixels: u64,
     /// Wall time of the image, seconds (without preparing the solution).
     pub seconds: f64,
 }
@@ -136,6 +151,8 @@ pub struct Gatherer<'a> {
     up: Vec3,
     /// `GatherOptions::near` squared.
     near2: f32,
+    /// Luminance Y of linear sRGB (white Y = 1).
+    lum: glam::DVec3,
 }
 
 #[derive(Clone, Copy, Default)]
@@ -213,6 +230,7 @@ impl<'a> Gatherer<'a> {
             eps: surface_eps(scene),
             up: scene.up.vector(),
             near2: opts.near * opts.near,
+            lum: crate::metrics::srgb_to_xyz_matrix().row(1),
         }
     }
 
@@ -421,19 +439,20 @@ impl<'a> Gatherer<'a> {
         Some((out, h.t))
     }
 
-    /// Pixel `(x, y)` of an image `w` pixels wide.
+    /// `n` samples of pixel `(x, y)` drawn from `rng`: their mean and the spread of their
+    /// luminance.
+    #[allow(clippy::too_many_arguments)]
     fn pixel(
         &self,
         frame: &CameraFrame,
         cache: Option<&Cache>,
         x: usize,
         y: usize,
-        w: usize,
+        n: u32,
+        mut rng: SplitMix64,
         cnt: &mut Counts,
-    ) -> Vec3 {
+    ) -> (Vec3, Spread) {
         let scene = self.scene;
-        let mut rng = SplitMix64::for_item(self.opts.seed, (y * w + x) as u64);
-        let n = self.opts.rays;
         let a = ((n as f64).sqrt() as u32).max(1);
         let b = n / a;
         // Independent shuffles of the strata of the pixel jitter, of the emitter choice and of
@@ -452,7 +471,7 @@ impl<'a> Gatherer<'a> {
         ] {
             shuffle(p, &mut rng);
         }
-        let mut sum = DVec3::ZERO;
+        let (mut sum, mut sum_y, mut sum_y2) = (DVec3::ZERO, 0.0f64, 0.0f64);
         for k in 0..n {
             let (jx, jy) = stratum(perm_px[k as usize], a, b, &mut rng);
             let d = frame.direction(x as f32 + jx, y as f32 + jy).normalize();
@@ -495,9 +514,18 @@ impl<'a> Gatherer<'a> {
                     None => self.reflected(p, ns, mat.rho, upick, ul, ud, ub, 0, &mut rng, cnt),
                 };
             }
-            sum += l.as_dvec3();
+            let l = l.as_dvec3();
+            let lum = self.lum.dot(l.max(DVec3::ZERO));
+            sum += l;
+            sum_y += lum;
+            sum_y2 += lum * lum;
         }
-        (sum / n as f64).as_vec3()
+        let mean_y = sum_y / n as f64;
+        let spread = Spread {
+            mean: mean_y,
+            std: (sum_y2 / n as f64 - mean_y * mean_y).max(0.0).sqrt(),
+        };
+        ((sum / n as f64).as_vec3(), spread)
     }
 
     /// Render an image.
@@ -523,6 +551,12 @@ impl<'a> Gatherer<'a> {
                 self.opts.bright
             )));
         }
+        if !(self.opts.adaptive >= 0.0 && self.opts.adaptive.is_finite()) {
+            return Err(Error::Config(format!(
+                "gather adaptive share {} must be a number >= 0",
+                self.opts.adaptive
+            )));
+        }
         let t0 = std::time::Instant::now();
         let frame = view.frame();
         let w = view.width as usize;
@@ -542,11 +576,52 @@ impl<'a> Gatherer<'a> {
         } else {
             None
         };
+        let n = self.opts.rays;
+        let mut first = vec![(Vec3::ZERO, Spread::default()); img.pixels.len()];
         let mut counts: Vec<Counts> =
-            render_rows(&mut img, "gather", progress, cancel, |x, y, cnt| {
-                self.pixel(&frame, cache.as_ref(), x, y, w, cnt)
+            render_rows(&mut first, w, "gather", progress, cancel, |x, y, cnt| {
+                let rng = SplitMix64::for_item(self.opts.seed, (y * w + x) as u64);
+                self.pixel(&frame, cache.as_ref(), x, y, n, rng, cnt)
             })?;
         counts.push(pre);
+        for (px, (c, _)) in img.pixels.iter_mut().zip(&first) {
+            *px = *c;
+        }
+        // Adaptive sampling: more samples where the neighbours' samples spread most, drawn
+        // from generators of their own and averaged with the first by count.
+        let extra = adaptive::allocate(
+            w,
+            view.height as usize,
+            n,
+            self.opts.adaptive as f64,
+            &first.iter().map(|(_, s)| *s).collect::<Vec<_>>(),
+            crate::metrics::white_luminance(&img),
+        );
+        let (adaptive_samples, adaptive_pixels) = (
+            extra.iter().map(|&m| m as u64).sum::<u64>(),
+            extra.iter().filter(|&&m| m > 0).count() as u64,
+        );
+        if adaptive_pixels > 0 {
+            let mut second = img.pixels.clone();
+            counts.extend(render_rows(
+                &mut second,
+                w,
+                "gather (adaptive)",
+                progress,
+                cancel,
+                |x, y, cnt| {
+                    let i = y * w + x;
+                    let m = extra[i];
+                    if m == 0 {
+                        return img.pixels[i];
+                    }
+                    let rng = SplitMix64::for_item(self.opts.seed ^ adaptive::SEED_TAG, i as u64);
+                    let (c, _) = self.pixel(&frame, cache.as_ref(), x, y, m, rng, cnt);
+                    (img.pixels[i] * n as f32 + c * m as f32) / (n + m) as f32
+                },
+            )?);
+            img.pixels = second;
+        }
         let sum = |f: fn(&Counts) -> u64| counts.iter().map(f).sum::<u64>();
         let stats = GatherStats {
             camera_rays: sum(|c| c.camera),
@@ -558,16 +633,20 @@ impl<'a> Gatherer<'a> {
             bright_triangles: self.bright.as_ref().map_or(0, |b| b.tris.len() as u64),
             cache_points: cache.as_ref().map_or(0, |c| c.len() as u64),
             cached: sum(|c| c.cached),
+            adaptive_samples,
+            adaptive_pixels,
             seconds: t0.elapsed().as_secs_f64(),
         };
         tracing::info!(
             "gather: {} camera rays, {} gather rays ({} near), {} cache points ({} samples cached), \
-             {} shadow rays, {} look-ups ({} missed) in {:.2} s",
+             {} adaptive samples in {} pixels, {} shadow rays, {} look-ups ({} missed) in {:.2} s",
             stats.camera_rays,
             stats.gather_rays,
             stats.near,
             stats.cache_points,
             stats.cached,
+            stats.adaptive_samples,
+            stats.adaptive_pixels,
             stats.shadow_rays,
             stats.lookups,
             stats.lookup_misses,

@@ -259,27 +259,27 @@ pub fn encode_srgb8(v: f32) -> u8 {
     (srgb_encode(v) * 255.0 + 0.5) as u8
 }
 
-/// Fill `img` in parallel, a row at a time: `pixel(x, y, counts)` per pixel, one `C` of
-/// counts per row (returned in row order), progress by rows; `Error::Interrupted` when `cancel`
-/// is set meanwhile.
-pub(crate) fn render_rows<C, F>(
-    img: &mut Image,
+/// Fill `pixels` (rows of `width`) in parallel, a row at a time: `pixel(x, y, counts)` per
+/// pixel, one `C` of counts per row (returned in row order), progress by rows;
+/// `Error::Interrupted` when `cancel` is set meanwhile.
+pub(crate) fn render_rows<P, C, F>(
+    pixels: &mut [P],
+    width: usize,
     label: &str,
     progress: &dyn hirad_core::progress::Progress,
     cancel: Option<&std::sync::atomic::AtomicBool>,
     pixel: F,
 ) -> Result<Vec<C>>
 where
+    P: Send,
     C: Default + Send,
-    F: Fn(usize, usize, &mut C) -> Vec3 + Sync,
+    F: Fn(usize, usize, &mut C) -> P + Sync,
 {
     use rayon::prelude::*;
     use std::sync::atomic::Ordering;
-    let w = img.width as usize;
-    progress.start(label, img.height as u64);
-    let counts: Vec<C> = img
-        .pixels
-        .par_chunks_mut(w)
+    progress.start(label, pixels.len().div_ceil(width.max(1)) as u64);
+    let counts: Vec<C> = pixels
+        .par_chunks_mut(width.max(1))
         .enumerate()
         .map(|(y, row)| {
             let mut cnt = C::default();

@@ -37,14 +37,23 @@ pub fn linear_srgb_to_xyz(m: &DMat3, rgb: DVec3) -> DVec3 {
     *m * rgb
 }
 
+/// CIE lightness L* of a luminance `yr` relative to the white's.
+pub fn lightness(yr: f64) -> f64 {
+    const EPS: f64 = 216.0 / 24389.0; // (6/29)^3
+    const KAPPA: f64 = 24389.0 / 27.0; // (29/3)^3
+    if yr > EPS {
+        116.0 * yr.cbrt() - 16.0
+    } else {
+        KAPPA * yr
+    }
+}
+
 /// XYZ → CIELUV relative to the white `white` (XYZ of the reference white).
 ///
 /// CIE 15: `L* = 116 (Y/Yn)^⅓ − 16` for `Y/Yn > (6/29)³`, else `(29/3)³ Y/Yn`;
 /// `u* = 13 L* (u′ − u′n)`, `v* = 13 L* (v′ − v′n)`, `u′ = 4X/(X+15Y+3Z)`,
 /// `v′ = 9Y/(X+15Y+3Z)`; black (X+15Y+3Z = 0) is (0, 0, 0).
 pub fn xyz_to_luv(xyz: DVec3, white: DVec3) -> DVec3 {
-    const EPS: f64 = 216.0 / 24389.0; // (6/29)^3
-    const KAPPA: f64 = 24389.0 / 27.0; // (29/3)^3
     let den = xyz.x + 15.0 * xyz.y + 3.0 * xyz.z;
     if den <= 0.0 {
         return DVec3::ZERO;
@@ -52,12 +61,7 @@ pub fn xyz_to_luv(xyz: DVec3, white: DVec3) -> DVec3 {
     let wden = white.x + 15.0 * white.y + 3.0 * white.z;
     let (un, vn) = (4.0 * white.x / wden, 9.0 * white.y / wden);
     let (u, v) = (4.0 * xyz.x / den, 9.0 * xyz.y / den);
-    let yr = xyz.y / white.y;
-    let l = if yr > EPS {
-        116.0 * yr.cbrt() - 16.0
-    } else {
-        KAPPA * yr
-    };
+    let l = lightness(xyz.y / white.y);
     DVec3::new(l, 13.0 * l * (u - un), 13.0 * l * (v - vn))
 }
 

@@ -434,10 +434,14 @@ impl<'a> PathTracer<'a> {
         let w = view.width as usize;
         let mut img = Image::new(view.width, view.height, Vec3::ZERO);
         let spp = self.opts.spp;
-        let counts: Vec<Counts> =
-            render_rows(&mut img, "reference", progress, cancel, |x, y, cnt| {
-                self.pixel(&frame, x, y, w, cnt)
-            })?;
+        let counts: Vec<Counts> = render_rows(
+            &mut img.pixels,
+            w,
+            "reference",
+            progress,
+            cancel,
+            |x, y, cnt| self.pixel(&frame, x, y, w, cnt),
+        )?;
         let stats = ReferenceStats {
             paths: view.width as u64 * view.height as u64 * spp as u64,
             segments: counts.iter().map(|c| c.segments).sum(),

@@ -211,6 +211,132 @@ fn gathered_light_from_a_bright_quad_is_the_polygon_irradiance() {
     }
 }
 
+/// Adaptive sampling: a camera under a quad light (L_e = 1, ρ = 0, nothing else in view) sees
+/// each pixel at L_e × the share of its footprint the quad covers (exact by a 64 × 64 grid of
+/// rays to the quad's plane). The extra samples go to the outline's pixels and their
+/// neighbours only, lower the error there below what twice the samples everywhere reach, and
+/// leave the image unbiased.
+#[test]
+fn adaptive_samples_go_to_an_emitter_s_outline() {
+    let quad = [
+        Vec3::new(-0.5, -0.3, 1.0),
+        Vec3::new(-0.5, 0.3, 1.0),
+        Vec3::new(0.5, 0.3, 1.0),
+        Vec3::new(0.5, -0.3, 1.0),
+    ];
+    let mut positions = vec![
+        Vec3::new(-2.0, -2.0, 0.0),
+        Vec3::new(2.0, -2.0, 0.0),
+        Vec3::new(2.0, 2.0, 0.0),
+        Vec3::new(-2.0, 2.0, 0.0),
+    ];
+    positions.extend_from_slice(&quad);
+    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let raw = RawScene {
+        name: "under a quad light".into(),
+        positions: positions.clone(),
+        triangles: triangles.clone(),
+        tri_material: vec![0, 0, 1, 1],
+        tri_object: vec![0; 4],
+        materials: vec![
+            Material::diffuse("floor", Vec3::splat(0.5)),
+            Material {
+                name: "quad".into(),
+                rho: Vec3::ZERO,
+                emission: Vec3::ONE,
+            },
+        ],
+        up: UpAxis::Z,
+        ..Default::default()
+    };
+    let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    let mut colors = vec![Vec3::ZERO; 4];
+    colors.extend([Vec3::splat(std::f32::consts::PI); 4]);
+    let mesh = ColoredMesh {
+        positions,
+        triangles,
+        colors,
+    };
+    // Looking up at the quad's corner (0.5, 0.3) from below: the floor faces away.
+    let view = CameraView {
+        eye: Vec3::new(0.3, 0.1, 0.5),
+        target: Vec3::new(0.5, 0.3, 1.0),
+        up: Vec3::Y,
+        fov_deg: 60.0,
+        width: 48,
+        height: 36,
+    };
+    let frame = view.frame();
+    let (w, h) = (view.width as usize, view.height as usize);
+    let want: Vec<f64> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut inside = 0u32;
+            for j in 0..64 {
+                for k in 0..64 {
+                    let d = frame.direction(
+                        x as f32 + (k as f32 + 0.5) / 64.0,
+                        y as f32 + (j as f32 + 0.5) / 64.0,
+                    );
+                    let t = (1.0 - frame.eye.z) / d.z;
+                    let p = frame.eye + d * t;
+                    inside += (t > 0.0 && p.x.abs() < 0.5 && p.y.abs() < 0.3) as u32;
+                }
+            }
+            inside as f64 / 4096.0
+        })
+        .collect();
+    let outline: Vec<bool> = want.iter().map(|&c| c > 0.0 && c < 1.0).collect();
+    assert!(outline.iter().any(|&o| o) && want.contains(&1.0));
+    let near_outline = (0..w * h)
+        .filter(|&i| {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let (xx, yy) = (x + dx, y + dy);
+                    xx >= 0
+                        && yy >= 0
+                        && (xx as usize) < w
+                        && (yy as usize) < h
+                        && outline[yy as usize * w + xx as usize]
+                })
+            })
+        })
+        .count() as u64;
+    let run = |rays: u32, adaptive: f32| {
+        let opts = GatherOptions {
+            rays,
+            seed: 9,
+            adaptive,
+            ..Default::default()
+        };
+        let (img, stats) = gather_stats(&scene, &mesh, &view, &opts);
+        let (mut se, mut sum, mut sum_want) = (0.0f64, 0.0f64, 0.0f64);
+        for (i, p) in img.pixels.iter().enumerate() {
+            se += (p.x as f64 - want[i]).powi(2);
+            sum += p.x as f64;
+            sum_want += want[i];
+        }
+        ((se / (w * h) as f64).sqrt(), sum / sum_want - 1.0, stats)
+    };
+    let (uniform, uniform_mean, _) = run(32, 0.0);
+    let (adaptive, adaptive_mean, stats) = run(16, 1.0);
+    println!(
+        "under a quad light: RMS error {uniform:.5} with 32 samples, {adaptive:.5} with 16 + \
+         {} adaptive in {} pixels ({near_outline} on or beside the outline); mean {:.3}% / \
+         {:.3}%",
+        stats.adaptive_samples,
+        stats.adaptive_pixels,
+        100.0 * uniform_mean,
+        100.0 * adaptive_mean
+    );
+    assert!(stats.adaptive_samples <= 16 * (w * h) as u64);
+    assert!(stats.adaptive_samples > 15 * (w * h) as u64);
+    assert!(stats.adaptive_pixels > 0 && stats.adaptive_pixels <= near_outline);
+    assert!(adaptive < 0.6 * uniform, "{adaptive} against {uniform}");
+    assert!(adaptive_mean.abs() < 0.003 && uniform_mean.abs() < 0.003);
+}
+
 /// `mesh` with radiosity `b` at every vertex.
 fn uniform(mesh: &ColoredMesh, b: f32) -> ColoredMesh {
     ColoredMesh {

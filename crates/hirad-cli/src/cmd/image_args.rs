@@ -319,6 +319,11 @@ pub struct GatherArgs {
     /// with the block's rays and interpolated where valid (0: every sample gathers its own).
     #[arg(long, default_value_t = 2)]
     pub gather_cache: u32,
+    /// Adaptive sampling: after every pixel's N samples, about this many times N more per
+    /// pixel on average, given to the pixels whose neighbours' samples spread most in lightness
+    /// (edges, emitter outlines) (0: every pixel takes N).
+    #[arg(long, default_value_t = 0.5, value_parser = parse_factor)]
+    pub gather_adaptive: f32,
 }
 
 fn parse_lookup(s: &str) -> Result<Lookup, String> {
@@ -369,6 +374,7 @@ impl GatherArgs {
             bright: self.gather_bright,
             near: self.gather_near,
             cache: self.gather_cache,
+            adaptive: self.gather_adaptive,
         };
         tracing::info!(
             "gather: solution matched in {prepare_seconds:.2} s ({} front, {} back triangles, \
