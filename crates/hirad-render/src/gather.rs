@@ -86,7 +86,7 @@ impl Default for GatherOptions {
             bright: 16.0,
             near: 2.0,
             cache: 2,
-            adaptive: 0.5,
+            adaptive: 1.0,
         }
     }
 }

@@ -322,7 +322,7 @@ pub struct GatherArgs {
     /// Adaptive sampling: after every pixel's N samples, about this many times N more per
     /// pixel on average, given to the pixels whose neighbours' samples spread most in lightness
     /// (edges, emitter outlines) (0: every pixel takes N).
-    #[arg(long, default_value_t = 0.5, value_parser = parse_factor)]
+    #[arg(long, default_value_t = 1.0, value_parser = parse_factor)]
     pub gather_adaptive: f32,
 }
 
