@@ -8,12 +8,13 @@
 //! (`solution.glb`), matched to the scene's surfaces by [`SolutionLookup`]: a `.glb` and the
 //! scene are enough, nothing is solved again. Bright solution triangles are also sampled by area
 //! ([`GatherOptions::bright`]), gather hits near the shading point get one more bounce
-//! ([`GatherOptions::near`]), and an irradiance cache can stand for the gather rays where the
-//! indirect light is smooth ([`GatherOptions::cache`]).
+//! ([`GatherOptions::near`]), an irradiance cache can stand for the gather rays where the
+//! indirect light is smooth ([`GatherOptions::cache`]), and a second pass adds samples where
+//! the first pass's pixels spread most ([`GatherOptions::adaptive`]).
 //!
-//! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)`, each
-//! cache point from one of its own; rows are rendered in parallel and the image does not
-//! depend on the number of threads.
+//! Each pixel draws from its own generator `SplitMix64::for_item(seed, y·width + x)` (its
+//! extra samples from one with a tagged seed), each cache point from one of its own; rows are
+//! rendered in parallel and the image does not depend on the number of threads.
 
 mod adaptive;
 mod bright;

@@ -1,6 +1,7 @@
 //! Final gather (`render::gather`) against closed forms: the direct term under a quad light over
 //! an open plane equals the point-to-polygon irradiance; in the furnace the gather returns the
-//! analytic radiance B/π; the image is seeded and does not depend on the thread count.
+//! analytic radiance B/π; adaptive samples go to an emitter's outline (exact coverage); the
+//! image is seeded and does not depend on the thread count.
 
 use glam::Vec3;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -35,6 +36,54 @@ fn gather_stats(
     (img, stats)
 }
 
+/// The quad `[-0.5, 0.5] × [-0.3, 0.3]` at z = 1 facing down (ρ = 0, emitted radiance `le`,
+/// the solution's radiosity `b`) over the floor `[-half, half]²` at z = 0 facing up (ρ = 0.5,
+/// radiosity 0): the scene, the solution mesh and the quad's corners.
+fn quad_and_floor(half: f32, le: f32, b: f32) -> (Scene, ColoredMesh, [Vec3; 4]) {
+    let quad = [
+        Vec3::new(-0.5, -0.3, 1.0),
+        Vec3::new(-0.5, 0.3, 1.0),
+        Vec3::new(0.5, 0.3, 1.0),
+        Vec3::new(0.5, -0.3, 1.0),
+    ];
+    let mut positions = vec![
+        Vec3::new(-half, -half, 0.0),
+        Vec3::new(half, -half, 0.0),
+        Vec3::new(half, half, 0.0),
+        Vec3::new(-half, half, 0.0),
+    ];
+    positions.extend_from_slice(&quad);
+    // Quad corners in this order face down (-z).
+    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let raw = RawScene {
+        name: "quad over a floor".into(),
+        positions: positions.clone(),
+        triangles: triangles.clone(),
+        tri_material: vec![0, 0, 1, 1],
+        tri_object: vec![0; 4],
+        materials: vec![
+            Material::diffuse("floor", Vec3::splat(0.5)),
+            Material {
+                name: "quad".into(),
+                rho: Vec3::ZERO,
+                emission: Vec3::splat(le),
+            },
+        ],
+        up: UpAxis::Z,
+        ..Default::default()
+    };
+    let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    assert!(scene.normals[2].z < -0.99, "the quad faces down");
+    let mut colors = vec![Vec3::ZERO; 4];
+    colors.extend([Vec3::splat(b); 4]);
+    let mesh = ColoredMesh {
+        positions,
+        triangles,
+        colors,
+    };
+    (scene, mesh, quad)
+}
+
 /// Irradiance at `x` (normal `n`) from a polygon of uniform radiance `l` (Lambert's
 /// point-to-polygon form factor: E = L/2 · |Σ γᵢ n·(rᵢ × rᵢ₊₁)/|rᵢ × rᵢ₊₁||).
 fn polygon_irradiance(x: Vec3, n: Vec3, poly: &[Vec3], l: f64) -> f64 {
@@ -60,48 +109,8 @@ fn quad_over_floor(
     opts: &GatherOptions,
     size: (u32, u32),
 ) -> (GatherStats, f64, f64, f64) {
-    let quad = [
-        Vec3::new(-0.5, -0.3, 1.0),
-        Vec3::new(-0.5, 0.3, 1.0),
-        Vec3::new(0.5, 0.3, 1.0),
-        Vec3::new(0.5, -0.3, 1.0),
-    ];
+    let (scene, mesh, quad) = quad_and_floor(20.0, le, b);
     let rho = 0.5f32;
-    let mut positions = vec![
-        Vec3::new(-20.0, -20.0, 0.0),
-        Vec3::new(20.0, -20.0, 0.0),
-        Vec3::new(20.0, 20.0, 0.0),
-        Vec3::new(-20.0, 20.0, 0.0),
-    ];
-    positions.extend_from_slice(&quad);
-    // Quad corners in this order face down (-z).
-    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
-    let raw = RawScene {
-        name: "quad over a floor".into(),
-        positions: positions.clone(),
-        triangles: triangles.clone(),
-        tri_material: vec![0, 0, 1, 1],
-        tri_object: vec![0; 4],
-        materials: vec![
-            Material::diffuse("floor", Vec3::splat(rho)),
-            Material {
-                name: "quad".into(),
-                rho: Vec3::ZERO,
-                emission: Vec3::splat(le),
-            },
-        ],
-        up: UpAxis::Z,
-        ..Default::default()
-    };
-    let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
-    assert!(scene.normals[2].z < -0.99, "the quad faces down");
-    let mut colors = vec![Vec3::ZERO; 4];
-    colors.extend([Vec3::splat(b); 4]);
-    let mesh = ColoredMesh {
-        positions,
-        triangles,
-        colors,
-    };
     let view = CameraView {
         eye: Vec3::new(0.2, 0.1, 0.6),
         target: Vec3::new(0.5, 0.2, 0.0),
@@ -218,45 +227,7 @@ fn gathered_light_from_a_bright_quad_is_the_polygon_irradiance() {
 /// leave the image unbiased.
 #[test]
 fn adaptive_samples_go_to_an_emitter_s_outline() {
-    let quad = [
-        Vec3::new(-0.5, -0.3, 1.0),
-        Vec3::new(-0.5, 0.3, 1.0),
-        Vec3::new(0.5, 0.3, 1.0),
-        Vec3::new(0.5, -0.3, 1.0),
-    ];
-    let mut positions = vec![
-        Vec3::new(-2.0, -2.0, 0.0),
-        Vec3::new(2.0, -2.0, 0.0),
-        Vec3::new(2.0, 2.0, 0.0),
-        Vec3::new(-2.0, 2.0, 0.0),
-    ];
-    positions.extend_from_slice(&quad);
-    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
-    let raw = RawScene {
-        name: "under a quad light".into(),
-        positions: positions.clone(),
-        triangles: triangles.clone(),
-        tri_material: vec![0, 0, 1, 1],
-        tri_object: vec![0; 4],
-        materials: vec![
-            Material::diffuse("floor", Vec3::splat(0.5)),
-            Material {
-                name: "quad".into(),
-                rho: Vec3::ZERO,
-                emission: Vec3::ONE,
-            },
-        ],
-        up: UpAxis::Z,
-        ..Default::default()
-    };
-    let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
-    let mut colors = vec![Vec3::ZERO; 4];
-    colors.extend([Vec3::splat(std::f32::consts::PI); 4]);
-    let mesh = ColoredMesh {
-        positions,
-        triangles,
-        colors,
-    };
+    let (scene, mesh, _) = quad_and_floor(2.0, 1.0, std::f32::consts::PI);
     // Looking up at the quad's corner (0.5, 0.3) from below: the floor faces away.
     let view = CameraView {
         eye: Vec3::new(0.3, 0.1, 0.5),
@@ -290,17 +261,9 @@ fn adaptive_samples_go_to_an_emitter_s_outline() {
     assert!(outline.iter().any(|&o| o) && want.contains(&1.0));
     let near_outline = (0..w * h)
         .filter(|&i| {
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            (-1..=1).any(|dy| {
-                (-1..=1).any(|dx| {
-                    let (xx, yy) = (x + dx, y + dy);
-                    xx >= 0
-                        && yy >= 0
-                        && (xx as usize) < w
-                        && (yy as usize) < h
-                        && outline[yy as usize * w + xx as usize]
-                })
-            })
+            let (x, y) = (i % w, i / w);
+            (y.saturating_sub(1)..(y + 2).min(h))
+                .any(|yy| (x.saturating_sub(1)..(x + 2).min(w)).any(|xx| outline[yy * w + xx]))
         })
         .count() as u64;
     let run = |rays: u32, adaptive: f32| {
