@@ -85,7 +85,7 @@ impl Default for GatherOptions {
             two_sided: false,
             lookup: Lookup::Element,
             bright: 16.0,
-            near: 2.0,
+            near: 8.0,
             cache: 2,
             adaptive: 1.0,
         }

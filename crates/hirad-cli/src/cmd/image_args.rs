@@ -313,7 +313,7 @@ pub struct GatherArgs {
     /// One more bounce near the shading point: gather hits closer than this multiple of the
     /// square root of their element's area are shaded there instead of reading the element's
     /// radiosity (0: off).
-    #[arg(long, default_value_t = 2.0, value_parser = parse_factor)]
+    #[arg(long, default_value_t = 8.0, value_parser = parse_factor)]
     pub gather_near: f32,
     /// Irradiance cache: the indirect light of one point per block of N×N pixels, gathered
     /// with the block's rays and interpolated where valid (0: every sample gathers its own).
