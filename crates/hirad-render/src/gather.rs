@@ -44,9 +44,9 @@ use std::sync::atomic::AtomicBool;
 /// Settings of the final gather.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GatherOptions {
-    /// Samples per pixel: camera rays, light samples and gather rays (one each per sample; a
-    /// sample that takes its indirect light from the irradiance cache casts no gather ray and
-    /// two light samples).
+    /// Samples per pixel before adaptive sampling: camera rays, light samples and gather rays
+    /// (one each per sample; a sample that takes its indirect light from the irradiance cache
+    /// casts no gather ray and two light samples).
     pub rays: u32,
     /// Seed of the per-pixel generators.
     pub seed: u64,
@@ -523,8 +523,8 @@ impl<'a> Gatherer<'a> {
         }
         let mean_y = sum_y / n as f64;
         let spread = Spread {
-            mean: mean_y,
-            std: (sum_y2 / n as f64 - mean_y * mean_y).max(0.0).sqrt(),
+            mean: mean_y as f32,
+            std: (sum_y2 / n as f64 - mean_y * mean_y).max(0.0).sqrt() as f32,
         };
         ((sum / n as f64).as_vec3(), spread)
     }
@@ -588,6 +588,7 @@ impl<'a> Gatherer<'a> {
         for (px, (c, _)) in img.pixels.iter_mut().zip(&first) {
             *px = *c;
         }
+        let spread: Vec<Spread> = first.iter().map(|(_, s)| *s).collect();
         // Adaptive sampling: more samples where the neighbours' samples spread most, drawn
         // from generators of their own and averaged with the first by count.
         let extra = adaptive::allocate(
@@ -595,33 +596,32 @@ impl<'a> Gatherer<'a> {
             view.height as usize,
             n,
             self.opts.adaptive as f64,
-            &first.iter().map(|(_, s)| *s).collect::<Vec<_>>(),
+            &spread,
             crate::metrics::white_luminance(&img),
         );
+        drop(spread);
         let (adaptive_samples, adaptive_pixels) = (
             extra.iter().map(|&m| m as u64).sum::<u64>(),
             extra.iter().filter(|&&m| m > 0).count() as u64,
         );
         if adaptive_pixels > 0 {
-            let mut second = img.pixels.clone();
             counts.extend(render_rows(
-                &mut second,
+                &mut img.pixels,
                 w,
                 "gather (adaptive)",
                 progress,
                 cancel,
                 |x, y, cnt| {
                     let i = y * w + x;
-                    let m = extra[i];
+                    let (m, c1) = (extra[i], first[i].0);
                     if m == 0 {
-                        return img.pixels[i];
+                        return c1;
                     }
                     let rng = SplitMix64::for_item(self.opts.seed ^ adaptive::SEED_TAG, i as u64);
                     let (c, _) = self.pixel(&frame, cache.as_ref(), x, y, m, rng, cnt);
-                    (img.pixels[i] * n as f32 + c * m as f32) / (n + m) as f32
+                    (c1 * n as f32 + c * m as f32) / (n + m) as f32
                 },
             )?);
-            img.pixels = second;
         }
         let sum = |f: fn(&Counts) -> u64| counts.iter().map(f).sum::<u64>();
         let stats = GatherStats {

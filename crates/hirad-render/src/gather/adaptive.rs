@@ -17,8 +17,8 @@ pub(super) const SEED_TAG: u64 = 0x4144_4150_5449_5645;
 /// Mean luminance of a pixel's samples and their spread (standard deviation of one sample).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Spread {
-    pub(super) mean: f64,
-    pub(super) std: f64,
+    pub(super) mean: f32,
+    pub(super) std: f32,
 }
 
 /// Extra samples per pixel of a `width × height` image whose `n` first samples per pixel had
@@ -71,8 +71,8 @@ fn judged(width: usize, height: usize, spread: &[Spread], white: f64) -> Vec<f64
     let own: Vec<f64> = spread
         .iter()
         .map(|s| {
-            let y = s.mean.max(0.0) / white;
-            lightness(y + s.std.max(0.0) / white) - lightness(y)
+            let y = s.mean.max(0.0) as f64 / white;
+            lightness(y + s.std.max(0.0) as f64 / white) - lightness(y)
         })
         .collect();
     let mut out = vec![0.0f64; spread.len()];
