@@ -435,7 +435,13 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
             0.5,
             2.0,
         ),
-        ("exact, default near", &exact, 2.0, 0.0, 2.0),
+        (
+            "exact, default near",
+            &exact,
+            GatherOptions::default().near,
+            0.0,
+            2.0,
+        ),
     ] {
         let opts = GatherOptions {
             rays: 256,
