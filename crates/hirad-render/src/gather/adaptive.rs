@@ -41,17 +41,15 @@ pub(super) fn allocate(
     }
     let judged = judged(width, height, spread, white);
     let n = n as f64;
-    let total = |lambda: f64| -> f64 { judged.iter().map(|&s| (lambda * s - n).max(0.0)).sum() };
-    // Bracket λ, then bisect: `total` is continuous and non-decreasing in λ.
-    let mut hi = 1.0f64;
-    while total(hi) < budget {
-        hi *= 2.0;
-        if !hi.is_finite() || hi > 1e300 {
-            return vec![0; spread.len()]; // every spread is zero: nothing to refine
-        }
+    let top = judged.iter().cloned().fold(0.0f64, f64::max);
+    if top <= 0.0 {
+        return vec![0; spread.len()]; // no spread anywhere: nothing to add
     }
-    let mut lo = 0.0f64;
-    for _ in 0..100 {
+    let total = |lambda: f64| -> f64 { judged.iter().map(|&s| (lambda * s - n).max(0.0)).sum() };
+    // Bisect λ in [0, hi]: `total` is continuous and non-decreasing in λ, and at `hi` the
+    // widest-spread pixel alone takes the whole budget.
+    let (mut lo, mut hi) = (0.0f64, (n + budget) / top);
+    for _ in 0..64 {
         let mid = 0.5 * (lo + hi);
         if total(mid) <= budget {
             lo = mid;
@@ -72,7 +70,12 @@ fn judged(width: usize, height: usize, spread: &[Spread], white: f64) -> Vec<f64
         .iter()
         .map(|s| {
             let y = s.mean.max(0.0) as f64 / white;
-            lightness(y + s.std.max(0.0) as f64 / white) - lightness(y)
+            let d = lightness(y + s.std.max(0.0) as f64 / white) - lightness(y);
+            if d.is_finite() {
+                d
+            } else {
+                0.0 // a sample that is not a number says nothing of the pixel's spread
+            }
         })
         .collect();
     let mut out = vec![0.0f64; spread.len()];
@@ -152,5 +155,13 @@ mod tests {
         assert!(allocate(w, h, 8, 0.0, &base, 1.0).iter().all(|&k| k == 0));
         let zero = vec![Spread::default(); w * h];
         assert!(allocate(w, h, 8, 1.0, &zero, 1.0).iter().all(|&k| k == 0));
+        // A pixel whose samples are not numbers neither takes nor blocks the others' share.
+        let mut odd = base.clone();
+        odd[0].std = f32::INFINITY;
+        odd[w + 4].mean = f32::NAN;
+        let b = allocate(w, h, 8, 1.0, &odd, 1.0);
+        let sum: usize = b.iter().map(|&k| k as usize).sum();
+        assert!(sum <= 8 * w * h && sum + w * h >= 8 * w * h, "{b:?}");
+        assert!(b[2 * w + 2] > b[1], "{b:?}");
     }
 }
