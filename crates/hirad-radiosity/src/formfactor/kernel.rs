@@ -381,10 +381,7 @@ impl KernelCtx<'_> {
         // surface drawn from it contributes E(x)/w_k, whose mean is Σ A_k E_k / Σ A_k w_k, the
         // irradiance that the hand-out `H·w_k` must carry to deliver the received power.
         let recv_cdf = match ri {
-            End::Cluster { node, .. }
-                if self.emission == ClusterEmission::Directional
-                    && self.reception == Reception::Oriented =>
-            {
+            End::Cluster { node, .. } if self.hands_out_by_surface() => {
                 Some(self.hand_out_cdf(node, j))
             }
             _ => None,
@@ -431,150 +428,185 @@ impl KernelCtx<'_> {
         // end of the first open ray (for `KernelCtx::probe_children`).
         let mut sampled: SmallVec<[u32; INLINE]> = SmallVec::new();
         let mut probe_src = None;
-        for s in 0..n {
-            // Source sample point. A directional cluster source is the projected area of the
-            // sampled surface (its own normal) at that point, so that the kernel converges to
-            // the form factor of the cluster's contents; an isotropic one stays at its centre.
-            let mut member = NO_MEMBER;
-            let (y, ny) = match sj {
-                End::Surface { v, n, .. } => (self.point_on(&v, sv[s][0], sv[s][1]), n),
-                End::Cluster { node, .. } => {
-                    let (y, n, k) = self.sample_cluster(node, sv[s][0], sv[s][1]);
-                    member = k;
-                    (y, n)
-                }
-            };
-            let mut src = sj;
-            if let End::Cluster {
-                c,
-                sample_normal,
-                orient: Some(_),
-                ..
-            } = &mut src
-            {
-                *c = y;
-                *sample_normal = Some(ny);
+        // A receiver whose points all came out covered says nothing of its open part, over
+        // which the kernel is the mean: its points are drawn again (keeping 0 would darken a
+        // partly covered receiver by the chance that all of its points fall under the cover,
+        // which grows as the rays per link fall).
+        // A surface receiver that push-pull found entirely covered has no open part to find.
+        let may_open = match ri {
+            End::Surface { .. } => {
+                let open = self.elems.open[i as usize];
+                open.is_nan() || open > 0.0
             }
-            // Receiver sample point and its unoccluded kernel: on a surface receiver; on a
-            // surface of a directional cluster drawn by hand-out weight (irradiance there over
-            // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
-            // centre, facing the source.
-            // What the shadow ray leaves out at each end: the surface its point lies on when
-            // a directional cluster is sampled surface by surface (its other surfaces occlude
-            // like any other), a whole cluster when the isotropic model stands for it (whose
-            // point emitter or receiver has no inside, as in Sillion's model).
-            let mut ex = ri.endpoint();
-            let mut recv_member = NO_MEMBER;
-            let ey = match sj {
-                End::Cluster {
-                    orient: Some(_), ..
-                } if member != NO_MEMBER => {
-                    Endpoint::Surface(self.elems.elems[member as usize].tri)
+            End::Cluster { .. } => true,
+        };
+        for round in 0..COVER_POINTS.div_ceil(n) {
+            if round > 0 {
+                if n_open > 0 || !may_open {
+                    break;
                 }
-                _ => sj.endpoint(),
-            };
-            let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
-                (End::Surface { v, n: nr, .. }, _) => match surface_pts.get(s) {
-                    Some(&(x, f)) => (x, f, Some(nr)),
-                    None => {
-                        let x = self.point_on(&v, su[s][0], su[s][1]);
-                        (x, self.sample_kernel(x, nr, &src, member), Some(nr))
+                members.clear();
+                surface_pts.clear();
+                su.clear();
+                sv.clear();
+                stratified_2d(n, &mut rng, &mut su);
+                stratified_2d(n, &mut rng, &mut sv);
+                // A surface receiver's round whose points are all covered costs no kernels.
+                if let End::Surface { v, n: nr, .. } = ri {
+                    let e = ri.endpoint();
+                    if su
+                        .iter()
+                        .all(|u| self.covered(e, nr, self.point_on(&v, u[0], u[1])))
+                    {
+                        continue;
                     }
-                },
-                (End::Cluster { .. }, Some(cdf)) => {
-                    let total = cdf[cdf.len() - 1].1;
-                    let target = su[s][0] as f64 * total;
-                    let i = cdf
-                        .partition_point(|&(_, c, _)| c <= target)
-                        .min(cdf.len() - 1);
-                    let lo = if i > 0 { cdf[i - 1].1 } else { 0.0 };
-                    let (id, hi, w) = cdf[i];
-                    let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
-                    let e = &self.elems.elems[id as usize];
-                    let x = self.point_on(&e.verts, u as f32, su[s][1]);
-                    let fx = self.sample_kernel(x, e.normal, &src, member) / w;
-                    ex = Endpoint::Surface(e.tri);
-                    recv_member = id;
-                    (x, fx, Some(e.normal))
                 }
-                (End::Cluster { node, c, .. }, None) => {
-                    let (x, _, _) = self.sample_cluster(node, su[s][0], su[s][1]);
-                    if bounds {
-                        // The kernel's spread over the receiving cluster.
-                        let fb = Self::point_kernel(x, None, &src);
-                        fmin = fmin.min(fb);
-                        fmax = fmax.max(fb);
+            }
+            for s in 0..n {
+                // Source sample point. A directional cluster source is the projected area of the
+                // sampled surface (its own normal) at that point, so that the kernel converges to
+                // the form factor of the cluster's contents; an isotropic one stays at its centre.
+                let mut member = NO_MEMBER;
+                let (y, ny) = match sj {
+                    End::Surface { v, n, .. } => (self.point_on(&v, sv[s][0], sv[s][1]), n),
+                    End::Cluster { node, .. } => {
+                        let (y, n, k) = self.sample_cluster(node, sv[s][0], sv[s][1]);
+                        member = k;
+                        (y, n)
                     }
-                    let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
-                    (x, k, None)
+                };
+                let mut src = sj;
+                if let End::Cluster {
+                    c,
+                    sample_normal,
+                    orient: Some(_),
+                    ..
+                } = &mut src
+                {
+                    *c = y;
+                    *sample_normal = Some(ny);
                 }
-            };
-            // A surface source's kernel at x counts the part of it above x's plane: aim the
-            // shadow ray there (a ray to a point behind x could pass where the counted part is
-            // hidden, e.g. from inside a thin slab to a desk the slab stands on).
-            let y = match (sj, nx) {
-                (End::Surface { v, .. }, Some(nr)) => {
-                    sample_triangle_above(x, nr, &v, (sv[s][0], sv[s][1]), self.vis.margin())
-                        .unwrap_or(y)
-                }
-                (
+                // Receiver sample point and its unoccluded kernel: on a surface receiver; on a
+                // surface of a directional cluster drawn by hand-out weight (irradiance there over
+                // the weight); or on a surface of an isotropic cluster, whose kernel is taken at its
+                // centre, facing the source.
+                // What the shadow ray leaves out at each end: the surface its point lies on when
+                // a directional cluster is sampled surface by surface (its other surfaces occlude
+                // like any other), a whole cluster when the isotropic model stands for it (whose
+                // point emitter or receiver has no inside, as in Sillion's model).
+                let mut ex = ri.endpoint();
+                let mut recv_member = NO_MEMBER;
+                let ey = match sj {
                     End::Cluster {
                         orient: Some(_), ..
-                    },
-                    Some(nr),
-                ) if member != NO_MEMBER => {
-                    let v = self.elems.elems[member as usize].verts;
-                    sample_triangle_above(x, nr, &v, (sv[s][1], sv[s][0]), self.vis.margin())
-                        .unwrap_or(y)
-                }
-                _ => y,
-            };
-            if source_leaves {
-                member = self.elems.leaf_at(j, y);
-            }
-            // A covered receiver point is not part of the receiver: the kernel is the mean
-            // over its open points. A covered source point emits nothing.
-            if self.covered(ex, nx.unwrap_or(Vec3::ZERO), x) {
-                if per_member {
-                    members.push((NO_MEMBER, 0.0));
-                }
-                continue;
-            }
-            n_open += 1;
-            let vis = if fx > 0.0 || bounds {
-                rays += 1;
-                if self.covered(ey, ny, y) {
-                    0.0
-                } else {
-                    self.vis.between(x, y, ex, ey, &mut last)
-                }
-            } else {
-                0.0
-            };
-            if fx > 0.0 {
-                open |= vis > 0.0;
-                blocked |= vis < 1.0;
-                if vis > 0.0 {
-                    seen.push((x, y));
-                    if probe_src.is_none() {
-                        probe_src = Some((y, ey));
+                    } if member != NO_MEMBER => {
+                        Endpoint::Surface(self.elems.elems[member as usize].tri)
                     }
+                    _ => sj.endpoint(),
+                };
+                let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
+                    (End::Surface { v, n: nr, .. }, _) => match surface_pts.get(s) {
+                        Some(&(x, f)) => (x, f, Some(nr)),
+                        None => {
+                            let x = self.point_on(&v, su[s][0], su[s][1]);
+                            (x, self.sample_kernel(x, nr, &src, member), Some(nr))
+                        }
+                    },
+                    (End::Cluster { .. }, Some(cdf)) => {
+                        let total = cdf[cdf.len() - 1].1;
+                        let target = su[s][0] as f64 * total;
+                        let i = cdf
+                            .partition_point(|&(_, c, _)| c <= target)
+                            .min(cdf.len() - 1);
+                        let lo = if i > 0 { cdf[i - 1].1 } else { 0.0 };
+                        let (id, hi, w) = cdf[i];
+                        let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
+                        let e = &self.elems.elems[id as usize];
+                        let x = self.point_on(&e.verts, u as f32, su[s][1]);
+                        let fx = self.sample_kernel(x, e.normal, &src, member) / w;
+                        ex = Endpoint::Surface(e.tri);
+                        recv_member = id;
+                        (x, fx, Some(e.normal))
+                    }
+                    (End::Cluster { node, c, .. }, None) => {
+                        let (x, _, _) = self.sample_cluster(node, su[s][0], su[s][1]);
+                        if bounds {
+                            // The kernel's spread over the receiving cluster.
+                            let fb = Self::point_kernel(x, None, &src);
+                            fmin = fmin.min(fb);
+                            fmax = fmax.max(fb);
+                        }
+                        let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
+                        (x, k, None)
+                    }
+                };
+                // A surface source's kernel at x counts the part of it above x's plane: aim the
+                // shadow ray there (a ray to a point behind x could pass where the counted part is
+                // hidden, e.g. from inside a thin slab to a desk the slab stands on).
+                let y = match (sj, nx) {
+                    (End::Surface { v, .. }, Some(nr)) => {
+                        sample_triangle_above(x, nr, &v, (sv[s][0], sv[s][1]), self.vis.margin())
+                            .unwrap_or(y)
+                    }
+                    (
+                        End::Cluster {
+                            orient: Some(_), ..
+                        },
+                        Some(nr),
+                    ) if member != NO_MEMBER => {
+                        let v = self.elems.elems[member as usize].verts;
+                        sample_triangle_above(x, nr, &v, (sv[s][1], sv[s][0]), self.vis.margin())
+                            .unwrap_or(y)
+                    }
+                    _ => y,
+                };
+                if source_leaves {
+                    member = self.elems.leaf_at(j, y);
                 }
-                recv.push((x, vis > 0.0));
-            }
-            if recv_member != NO_MEMBER {
-                sampled.push(recv_member);
-            }
-            vmin = vmin.min(vis);
-            vmax = vmax.max(vis);
-            fmin = fmin.min(fx);
-            fmax = fmax.max(fx);
-            sum += fx * vis;
-            if per_member {
-                members.push((member, (fx * vis) as f32));
-            }
-            if recv_member != NO_MEMBER && fx * vis > 0.0 {
-                recv_open.push((recv_member, fx * vis));
+                // A covered receiver point is not part of the receiver: the kernel is the mean
+                // over its open points. A covered source point emits nothing.
+                if self.covered(ex, nx.unwrap_or(Vec3::ZERO), x) {
+                    if per_member {
+                        members.push((NO_MEMBER, 0.0));
+                    }
+                    continue;
+                }
+                n_open += 1;
+                let vis = if fx > 0.0 || bounds {
+                    rays += 1;
+                    if self.covered(ey, ny, y) {
+                        0.0
+                    } else {
+                        self.vis.between(x, y, ex, ey, &mut last)
+                    }
+                } else {
+                    0.0
+                };
+                if fx > 0.0 {
+                    open |= vis > 0.0;
+                    blocked |= vis < 1.0;
+                    if vis > 0.0 {
+                        seen.push((x, y));
+                        if probe_src.is_none() {
+                            probe_src = Some((y, ey));
+                        }
+                    }
+                    recv.push((x, vis > 0.0));
+                }
+                if recv_member != NO_MEMBER {
+                    sampled.push(recv_member);
+                }
+                vmin = vmin.min(vis);
+                vmax = vmax.max(vis);
+                fmin = fmin.min(fx);
+                fmax = fmax.max(fx);
+                sum += fx * vis;
+                if per_member {
+                    members.push((member, (fx * vis) as f32));
+                }
+                if recv_member != NO_MEMBER && fx * vis > 0.0 {
+                    recv_open.push((recv_member, fx * vis));
+                }
             }
         }
         if bounds {
@@ -694,6 +726,12 @@ impl KernelCtx<'_> {
         }
     }
 
+    /// A cluster receiver's samples land on its surfaces, drawn by hand-out weight, and name
+    /// those that saw the source (directional emission with oriented reception).
+    pub fn hands_out_by_surface(&self) -> bool {
+        self.emission == ClusterEmission::Directional && self.reception == Reception::Oriented
+    }
+
     /// Point `p` of a surface end (its side facing `n`) is covered ([`Covers`]).
     #[inline]
     pub(super) fn covered(&self, end: Endpoint, n: Vec3, p: Vec3) -> bool {
@@ -770,6 +808,11 @@ pub(super) const INLINE: usize = 16;
 
 /// A link's 2-D sample numbers.
 pub(super) type Samples = SmallVec<[[f32; 2]; INLINE]>;
+
+/// Receiver points drawn at most, round by round, for a link whose points all came out
+/// covered (a receiver whose open part is a fraction `f` of it is missed with probability
+/// `(1 − f)^COVER_POINTS`, whatever the rays per link).
+const COVER_POINTS: usize = 64;
 
 /// [`KernelCtx::sample_cluster`] found no surface.
 pub(crate) const NO_MEMBER: u32 = crate::link::NO_MEMBER;

@@ -18,6 +18,9 @@
 //! cluster's mean). When all of a directional cluster receiver's rays saw the source, each of
 //! its children that no sample landed on is tested with one more ray first: a blocked one
 //! makes the rays disagree (a cluster straddling a wall would otherwise light its far side).
+//! A directional cluster receiver's link that could have split on its rays' outcome and is
+//! kept takes its kernel from independent rays: kept on the rays that chose it, the links
+//! whose rays all missed the source would stay dark while those that saw it went down.
 //!
 //! Outlines: the oracle judges each link alone, so a wall lit by a whole room keeps many weak
 //! links at a big element, and their light lands behind what hangs in front of it. A surface
@@ -30,7 +33,7 @@
 use super::budget::Growth;
 use super::gather::Entry;
 use super::{Solver, STRADDLES, STRADDLE_DECIDED};
-use crate::config::Oracle;
+use crate::config::{Oracle, VisibilityMode};
 use crate::element::{Elements, Kind};
 use crate::formfactor::KernelCtx;
 use crate::link::{Deposit, Kept, Link, LinkSet, Sample, NO_SAMPLES};
@@ -543,17 +546,18 @@ impl Solver<'_> {
                     self.el.b[sj as usize],
                     r.rho.as_dvec3(),
                 );
+            let mut c_used = ctx;
             let mut ev = match eval {
                 Some(ev) => ev,
                 None => {
-                    let c = if redrawn {
+                    c_used = if redrawn {
                         &fresh
                     } else if again {
                         &independent
                     } else {
                         ctx
                     };
-                    let ev = c.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                    let ev = c_used.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                     rays += ev.rays;
                     ev
                 }
@@ -592,6 +596,47 @@ impl Solver<'_> {
                 }
                 redraw = true;
             }
+            // A cluster receiver hands what it receives to all of its surfaces that face the
+            // source: when some samples see the source and some do not, a shadow boundary
+            // crosses the cluster and the hand-out would light surfaces the source cannot
+            // see, whatever the transfer's size. A directional cluster hands it to the surfaces
+            // whose samples saw the source instead ([`Link::open_members`]); an isotropic one,
+            // which samples no surface (so the kernel names none), goes down to its children,
+            // as does a directional one whose samples all saw the source where a child no
+            // sample landed on does not.
+            let recv_splits = r.kind == Kind::Cluster && allow && r.num_children > 0;
+            if ev.mixed && recv_splits && (ev.open_members.is_empty() || ev.hidden_child) {
+                return (Action::SplitRecv, *l, rays, None);
+            }
+            // Likewise a cluster source whose samples do not carry their own surface's
+            // radiosity (the isotropic model): the receiver would take the cluster's mean over
+            // surfaces it does not see.
+            let src_splits =
+                s.kind == Kind::Cluster && ev.members.is_empty() && allow && s.num_children > 0;
+            if ev.mixed && src_splits {
+                return (Action::SplitSrc, *l, rays, None);
+            }
+            // The split of a directional cluster receiver follows its rays' outcome: kept on
+            // the rays that chose it, the links whose rays all missed the source would stay
+            // dark while those whose rays saw it went down, so a kept one takes its kernel from
+            // independent rays (which hand it to the surfaces they saw, if they disagree). The
+            // isotropic models keep their rays: drawn again, rays that disagree would light
+            // surfaces behind a wall. Without shadow rays no split follows an outcome.
+            if recv_splits
+                && ctx.hands_out_by_surface()
+                && ctx.vis.mode() != VisibilityMode::None
+                && !redraw
+            {
+                let second = KernelCtx {
+                    seed: c_used.seed ^ 0x5EC0_D0D5_A3F1_17E5,
+                    ..*c_used
+                };
+                ev = second.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
+                rays += ev.rays;
+                if ev.mixed && src_splits {
+                    return (Action::SplitSrc, *l, rays, None);
+                }
+            }
             if redraw {
                 ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                 rays += ev.rays;
@@ -600,31 +645,11 @@ impl Solver<'_> {
             link.deposit = ev.deposit;
             link.draw = ev.draw;
             let has_members = !ev.members.is_empty();
-            // A cluster receiver hands what it receives to all of its surfaces that face the
-            // source: when some samples see the source and some do not, a shadow boundary
-            // crosses the cluster and the hand-out would light surfaces the source cannot
-            // see, whatever the transfer's size. A directional cluster hands it to the surfaces
-            // whose samples saw the source instead ([`Link::open_members`]); an isotropic one,
-            // which samples no surface (so the kernel names none), goes down to its children.
-            if ev.mixed
-                && r.kind == Kind::Cluster
-                && (ev.open_members.is_empty() || ev.hidden_child)
-                && allow
-                && r.num_children > 0
-            {
-                return (Action::SplitRecv, *l, rays, None);
-            }
             if has_members || !ev.open_members.is_empty() {
                 members = Some(Box::new(Recorded {
                     samples: ev.members,
                     open: ev.open_members,
                 }));
-            }
-            // Likewise a cluster source whose samples do not carry their own surface's
-            // radiosity (the isotropic model): the receiver would take the cluster's mean over
-            // surfaces it does not see.
-            if ev.mixed && s.kind == Kind::Cluster && !has_members && allow && s.num_children > 0 {
-                return (Action::SplitSrc, *l, rays, None);
             }
             // Where no bound judged the link, a sampled kernel above the estimate shows that
             // the estimate missed something (surfaces of a cluster much nearer the other end
