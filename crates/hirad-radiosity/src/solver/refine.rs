@@ -43,6 +43,10 @@ use hirad_core::{Error, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Sample points that share out a kept link's light among the surfaces of a directional
+/// cluster receiver whose rays disagree.
+const HAND_OUT_POINTS: usize = 16;
+
 /// Links decided at a time in a refinement pass (see [`Solver::settle`]).
 const REFINE_CHUNK: usize = 1 << 18;
 
@@ -640,6 +644,23 @@ impl Solver<'_> {
             if redraw {
                 ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                 rays += ev.rays;
+            }
+            // A kept link into a directional cluster whose rays disagree hands its light to
+            // the surfaces its samples saw, in proportion to what they received: a few samples
+            // would pour a whole cluster's light onto a few (possibly tiny) surfaces. The
+            // shares come from a denser, independent draw instead; the light, its total, stays
+            // this link's.
+            if ev.mixed && !ev.open_members.is_empty() {
+                let dense = KernelCtx {
+                    seed: c_used.seed ^ 0x4A4D_0075_5EED_5A4E,
+                    n_rays: c_used.n_rays.max(HAND_OUT_POINTS),
+                    ..*c_used
+                };
+                let d = dense.evaluate_with(ri, sj, false, est_raw, unresolved, false);
+                rays += d.rays;
+                if d.mixed && !d.open_members.is_empty() {
+                    ev.open_members = d.open_members;
+                }
             }
             link.k = ev.k as f32;
             link.deposit = ev.deposit;
