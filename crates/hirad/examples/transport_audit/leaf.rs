@@ -19,7 +19,28 @@ use rayon::prelude::*;
 pub fn leaf_links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, sol: &Solution) {
     let el = &sol.elements;
     let covers = Covers::build(scene, tree, o.two_sided);
-    let leaf = o.leaf.expect("leaf needs --leaf ID");
+    let leaf = match o.leaf.expect("leaf needs --leaf ID|max") {
+        // The leaf of the largest radiosity (channel sum) that emits nothing.
+        u32::MAX => {
+            let el = &sol.elements;
+            let l = sol
+                .leaves()
+                .into_iter()
+                .filter(|&l| el.elems[l as usize].emission.max_element() <= 0.0)
+                .max_by(|&a, &b| {
+                    el.b[a as usize]
+                        .element_sum()
+                        .total_cmp(&el.b[b as usize].element_sum())
+                })
+                .expect("a leaf");
+            println!(
+                "leaf {l}: B {:?}, centroid {:?}, area {:.3e}",
+                el.b[l as usize], el.elems[l as usize].centroid, el.elems[l as usize].area
+            );
+            l
+        }
+        id => id,
+    };
     let mut chain = vec![leaf];
     while let Some(&id) = chain.last() {
         let p = el.elems[id as usize].parent;

@@ -41,6 +41,8 @@ pub struct Opts {
     pub rows: usize,
     /// `--leaf` (`leaf`): the leaf element.
     pub leaf: Option<u32>,
+    /// The solver's seed (`None`: the preset's).
+    pub seed: Option<u64>,
     /// `--fov` (`image`): vertical field of view, degrees.
     pub fov: Option<f32>,
     /// `--shadow-levels`: overrides the preset's shadow levels.
@@ -70,6 +72,7 @@ pub fn parse() -> Opts {
         depth: None,
         rows: 30,
         leaf: None,
+        seed: None,
         fov: None,
         shadow_levels: None,
         refine: None,
@@ -92,7 +95,15 @@ pub fn parse() -> Opts {
             "--iters" => o.iters = Some(val().parse().expect("--iters N")),
             "--depth" => o.depth = Some(val().parse().expect("--depth N")),
             "--rows" => o.rows = val().parse().expect("--rows N"),
-            "--leaf" => o.leaf = Some(val().parse().expect("--leaf ID")),
+            "--leaf" => {
+                let v = val();
+                o.leaf = Some(if v == "max" {
+                    u32::MAX
+                } else {
+                    v.parse().expect("--leaf ID|max")
+                })
+            }
+            "--seed" => o.seed = Some(val().parse().expect("--seed N")),
             "--fov" => o.fov = Some(val().parse().expect("--fov DEGREES")),
             "--shadow-levels" => o.shadow_levels = Some(val().parse().expect("--shadow-levels N")),
             m if !m.starts_with("--") => o.mode = m.into(),
@@ -119,6 +130,9 @@ impl Opts {
         }
         if let Some(n) = o.iters {
             cfg.max_iters = n;
+        }
+        if let Some(s) = o.seed {
+            cfg.seed = s;
         }
         if let Some(n) = o.shadow_levels {
             cfg.shadow_levels = n;
