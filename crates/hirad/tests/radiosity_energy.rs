@@ -369,7 +369,7 @@ fn a_furnished_closed_room_gathers_what_its_reflectance_implies() {
 /// stays dark) and receivers whose few points all fell under a cover (read as receiving
 /// nothing) left the solids in contact 2.2–2.6% short here (proxi, kdt, sah).
 #[test]
-fn one_shadow_ray_per_link_gathers_as_much_as_four() {
+fn one_shadow_ray_per_link_gathers_what_the_reflectance_implies() {
     let mut bad = Vec::new();
     for gap in [0.005, 0.0] {
         let scene = furnished_room(gap);

@@ -637,9 +637,6 @@ impl Solver<'_> {
                 };
                 ev = second.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
                 rays += ev.rays;
-                if ev.mixed && src_splits {
-                    return (Action::SplitSrc, *l, rays, None);
-                }
             }
             if redraw {
                 ev = fresh.evaluate_with(ri, sj, false, est_raw, unresolved, leaves);
