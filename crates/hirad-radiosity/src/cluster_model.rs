@@ -323,4 +323,54 @@ impl KernelCtx<'_> {
         }
         out
     }
+
+    /// The part of directional cluster receiver `recv` that one sample on its surface `member`
+    /// stands for when it alone saw source `src`: the lowest of `member` and its ancestors
+    /// below `recv` whose open hand-out weight `W = Σ A_k o_k w_k` (`o_k` the open share)
+    /// reaches `target` (the receiver's `W` over its samples), or the child of `recv` above
+    /// `member` when none does. Returns it with its `W`.
+    pub(crate) fn hand_out_stratum(
+        &self,
+        recv: u32,
+        member: u32,
+        src: u32,
+        target: f64,
+    ) -> (u32, f64) {
+        let el = self.elems;
+        let se = &el.elems[src as usize];
+        let (mut at, mut w) = (member, self.open_weight(member, se));
+        while w < target {
+            let p = el.elems[at as usize].parent;
+            if p == recv || p == NONE {
+                break;
+            }
+            for c in el.children(p) {
+                if c != at {
+                    w += self.hand_out_total(c, se);
+                }
+            }
+            at = p;
+        }
+        (at, w)
+    }
+
+    /// `Σ A_k o_k w_k` over the surfaces at or below cluster-tree element `id` towards `src`.
+    fn hand_out_total(&self, id: u32, src: &Element) -> f64 {
+        let el = self.elems;
+        let mut w = 0.0;
+        let mut stack = vec![id];
+        while let Some(id) = stack.pop() {
+            match el.elems[id as usize].kind {
+                Kind::Cluster => stack.extend(el.children(id)),
+                Kind::Surface => w += self.open_weight(id, src),
+            }
+        }
+        w
+    }
+
+    /// `A_k o_k w_k` of surface `id` towards `src`: its open area times its hand-out weight.
+    pub(crate) fn open_weight(&self, id: u32, src: &Element) -> f64 {
+        let e = &self.elems.elems[id as usize];
+        e.area as f64 * self.elems.open_share(id) * e.facing_weight(src)
+    }
 }

@@ -254,6 +254,17 @@ impl Elements {
         self.num_tris * if self.two_sided { 2 } else { 1 }
     }
 
+    /// [`Elements::open`] of element `id`, taken as 1 while unknown.
+    #[inline]
+    pub fn open_share(&self, id: u32) -> f64 {
+        let o = self.open[id as usize];
+        if o.is_nan() {
+            1.0
+        } else {
+            o as f64
+        }
+    }
+
     /// Ids of the root surface elements.
     #[inline]
     pub fn roots(&self) -> std::ops::Range<u32> {

@@ -151,6 +151,14 @@ pub struct SolveStats {
     /// over-estimate; nothing is clamped).
     #[serde(default)]
     pub leaves_gain_above_one: u64,
+    /// Leaves whose irradiance from their links (any channel) exceeded twice the brightest
+    /// radiosity of an emitter or of a surface the sun or sky lights directly, in the
+    /// iteration before: irradiance at a point is at most the brightest radiosity it sees
+    /// (`E = ∫ L cos θ dω ≤ π L_max`), and a surface lit only through links is never the
+    /// brightest (`B = ρ H < max B`), so such a leaf got light no sampled estimate should
+    /// give it.
+    #[serde(default)]
+    pub leaves_above_brightest: u64,
     /// The leaves' kernel sums `Σ K` in the last gather, weighted by open area: 1 in a closed
     /// scene, where every open point sees surfaces all round.
     #[serde(default)]

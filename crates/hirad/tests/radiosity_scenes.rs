@@ -194,3 +194,34 @@ fn office_light_does_not_depend_on_the_shadow_rays_per_link() {
         "1 ray {one} W, 16 rays {many} W"
     );
 }
+
+/// No leaf gathers more irradiance than the scene's light can give: irradiance is at most the
+/// brightest radiosity seen, and only an emitter (or a surface the sun or sky lights) can be
+/// the brightest, so [`SolveStats::leaves_above_brightest`] (twice that, for sampling) stays
+/// 0. On the Franka arm, a polygon soup of tiny triangles, one ray per link used to give
+/// a whole cluster's light to the one speck whose sample saw the source: 14 and 7 such
+/// leaves on these seeds, one at 200× the panel's radiosity.
+///
+/// [`SolveStats::leaves_above_brightest`]: hirad::radiosity::SolveStats::leaves_above_brightest
+#[test]
+fn franka_panda_leaves_get_no_more_light_than_the_panel_gives() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenes/franka_panda.toml"
+    );
+    let scene = Scene::load(path, &SceneOptions::default()).unwrap();
+    let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
+    for seed in [1, 3] {
+        let cfg = SolverConfig {
+            seed,
+            ..SolverConfig::preset("fast").unwrap()
+        };
+        let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+        let n = sol.stats.leaves_above_brightest;
+        println!("seed {seed}: {n} leaves above the brightest radiosity");
+        assert_eq!(
+            n, 0,
+            "seed {seed}: {n} leaves got more light than the panel gives"
+        );
+    }
+}

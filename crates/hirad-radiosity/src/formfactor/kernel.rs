@@ -50,10 +50,11 @@ pub struct KernelEval {
     pub deposit: Deposit,
     /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
     pub draw: Deposit,
-    /// Directional cluster receiver whose rays disagree: the surfaces whose samples saw the
-    /// source, each with its irradiance per unit of the cluster's: the hand-out's power
-    /// (`W = Σ A_s w_s` times the cluster's irradiance) shared in proportion to what their
-    /// samples received, over their area.
+    /// Directional cluster receiver whose rays disagree: the strata around the surfaces whose
+    /// samples saw the source (a surface, or a cluster below the receiver), each with its
+    /// irradiance per unit of the cluster's: the hand-out's power (`W = Σ A_s w_s` times the
+    /// cluster's irradiance) shared in proportion to what their samples received, over a
+    /// surface's area, or over a cluster's `W` (its surfaces then get it times their `w_s`).
     pub open_members: Vec<(u32, f32)>,
     /// Directional cluster receiver whose rays all saw the source: a child that no sample
     /// landed on does not see it (`KernelCtx::probe_children`).
@@ -661,16 +662,45 @@ impl KernelCtx<'_> {
         // The hand-out would deliver `k·B·W` to the cluster's surfaces in proportion to
         // `A_s w_s`; when the rays disagree, the surfaces whose samples saw the source share it
         // in proportion to what their samples received, and the others get nothing.
+        // The hand-out delivers `k·B·W` over the receiver's open parts (`W = Σ A_s o_s w_s`,
+        // `o_s` the open share), of which each of its counted points stands for `W / n`: a
+        // surface whose sample saw the source shares its part of the light with the surfaces
+        // around it up to that weight (its stratum, [`KernelCtx::hand_out_stratum`]), handed
+        // out by weight as a cluster would; its share alone over its area could pour a whole
+        // cluster's light on a speck.
         let mut open_members = Vec::new();
         if let (true, Some(cdf)) = (mixed, recv_cdf.as_deref()) {
-            let total_w = cdf[cdf.len() - 1].1;
+            let mut lo = 0.0;
+            let total_w: f64 = cdf
+                .iter()
+                .map(|&(id, hi, _)| {
+                    let aw = hi - lo;
+                    lo = hi;
+                    aw * self.elems.open_share(id)
+                })
+                .sum();
             let received: f64 = recv_open.iter().map(|m| m.1).sum();
+            let target = total_w / n_open;
             recv_open.sort_unstable_by_key(|m| m.0);
+            let mut strata: SmallVec<[(u32, f64); INLINE]> = SmallVec::new();
             for m in recv_open.chunk_by(|a, b| a.0 == b.0) {
                 let id = m[0].0;
                 let share = m.iter().map(|m| m.1).sum::<f64>() / received;
-                let area = self.elems.elems[id as usize].area as f64;
-                open_members.push((id, (total_w * share / area.max(1e-300)) as f32));
+                let (at, w) = self.hand_out_stratum(i, id, j, target);
+                // A surface takes its irradiance over its open area.
+                let per = if at == id {
+                    self.elems.elems[id as usize].area as f64 * self.elems.open_share(id)
+                } else {
+                    w
+                };
+                // Push-pull delivers nothing to a part it found covered.
+                if per > 0.0 {
+                    strata.push((at, total_w * share / per));
+                }
+            }
+            strata.sort_unstable_by_key(|m| m.0);
+            for m in strata.chunk_by(|a, b| a.0 == b.0) {
+                open_members.push((m[0].0, m.iter().map(|m| m.1).sum::<f64>() as f32));
             }
         }
         KernelEval {

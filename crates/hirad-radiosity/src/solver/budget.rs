@@ -51,9 +51,10 @@ impl Solver<'_> {
             + self.straddle.capacity()
             + self.set.memory_bytes()
             + (self.links.capacity() + extra_links) * size_of::<Link>()
-            + self.entries.capacity() * size_of::<Entry>()
+            + (self.entries.capacity() + self.strata.capacity()) * size_of::<Entry>()
             + self.deposits.capacity() * size_of::<(Deposit, DVec3)>()
-            + (self.dep_ranges.capacity() + self.cl_ranges.capacity()) * 8
+            + (self.dep_ranges.capacity() + self.cl_ranges.capacity() + self.st_ranges.capacity())
+                * 8
             + self.root_irr.capacity() * size_of::<DVec3>()
             + self.pp_order.capacity() * 4) as u64
     }

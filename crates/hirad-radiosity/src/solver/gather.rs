@@ -49,6 +49,9 @@ struct Gathered {
     ///
     /// [`Link::open_members`]: crate::link::Link::open_members
     open: Vec<(u32, DVec3)>,
+    /// Cluster receivers: the same for the clusters below them that such surfaces stand for,
+    /// handed out as entries of those clusters.
+    strata: Vec<(u32, Entry)>,
 }
 
 /// What a cluster received through one link, handed to its surfaces in push-pull.
@@ -103,6 +106,7 @@ impl Solver<'_> {
             }
         }
         let mut built: Vec<Entry> = Vec::new();
+        let mut strata: Vec<(u32, Entry)> = Vec::new();
         self.deposits.clear();
         self.dep_ranges.clear();
         self.dep_ranges.resize(self.el.len(), (0, 0));
@@ -166,8 +170,26 @@ impl Solver<'_> {
                             let contrib = set.gather(l, el);
                             let open = set.open_members(l);
                             if !open.is_empty() {
-                                g.open
-                                    .extend(open.iter().map(|&(m, f)| (m, contrib * f as f64)));
+                                let se = &el.elems[l.src as usize];
+                                for &(m, f) in open {
+                                    let h = contrib * f as f64;
+                                    let me = &el.elems[m as usize];
+                                    if me.kind == Kind::Cluster {
+                                        let d = (se.centroid - me.centroid).normalize_or_zero();
+                                        g.strata.push((
+                                            m,
+                                            Entry {
+                                                d,
+                                                sc: se.centroid,
+                                                sn: se.facing_normal(),
+                                                h,
+                                                k: 0.0,
+                                            },
+                                        ));
+                                    } else {
+                                        g.open.push((m, h));
+                                    }
+                                }
                             } else if re.kind == Kind::Cluster && update {
                                 slot.next().expect("an entry per link").h = contrib;
                             } else if re.kind == Kind::Cluster {
@@ -210,6 +232,7 @@ impl Solver<'_> {
                 for &(m, h) in &g.open {
                     self.el.h[m as usize] += h;
                 }
+                strata.extend_from_slice(&g.strata);
                 if !g.deposits.is_empty() {
                     let s = self.deposits.len() as u32;
                     self.deposits.extend_from_slice(&g.deposits);
@@ -233,6 +256,18 @@ impl Solver<'_> {
         }
         drop(slots);
         self.entries = if update { entries } else { built };
+        // Strata by cluster, each cluster's in the order of the groups.
+        strata.sort_by_key(|s| s.0);
+        for r in self.st_ranges.iter_mut() {
+            *r = (0, 0);
+        }
+        self.strata.clear();
+        self.strata.reserve_exact(strata.len());
+        for run in strata.chunk_by(|a, b| a.0 == b.0) {
+            let s = self.strata.len() as u32;
+            self.strata.extend(run.iter().map(|r| r.1));
+            self.st_ranges[run[0].0 as usize] = (s, self.strata.len() as u32);
+        }
         self.note_peak();
     }
 }

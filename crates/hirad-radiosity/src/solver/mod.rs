@@ -193,6 +193,10 @@ struct Solver<'a> {
     /// clusters' entries).
     pp_order: Vec<u32>,
     entries: Vec<Entry>,
+    /// Per cluster: range into `strata`, the hand-outs of the open surfaces of links into
+    /// clusters above it ([`crate::formfactor::kernel::KernelEval::open_members`]).
+    st_ranges: Vec<(u32, u32)>,
+    strata: Vec<Entry>,
     /// Deposits of the surface receivers' links, and per element its range in them.
     deposits: Vec<(Deposit, DVec3)>,
     dep_ranges: Vec<(u32, u32)>,
@@ -319,6 +323,8 @@ impl<'a> Solver<'a> {
             cl_ranges: vec![(0, 0); nc],
             pp_order,
             entries: Vec::new(),
+            st_ranges: vec![(0, 0); nc],
+            strata: Vec::new(),
             deposits: Vec::new(),
             dep_ranges: Vec::new(),
             root_irr: Vec::new(),

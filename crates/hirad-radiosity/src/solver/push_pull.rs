@@ -23,6 +23,8 @@ struct RootResult {
     direct: f64,
     /// Leaves whose gain `ρ · Σ K` exceeds 1.
     gain_above_one: u64,
+    /// Leaves whose irradiance exceeds twice the brightest radiosity before.
+    above_brightest: u64,
     /// Leaves' open area, Σ open·K, open area with K < 0.9 and with K > 1.1.
     k_stats: [f64; 4],
 }
@@ -36,9 +38,20 @@ impl Solver<'_> {
         let tree = self.tree;
         let entries = &self.entries;
         let cl_ranges = &self.cl_ranges;
+        let (strata, st_ranges) = (&self.strata, &self.st_ranges);
         let h_cluster = &self.h_cluster;
         let k_sum = &self.k_sum;
         let reception = self.cfg.cluster_receive;
+        // Twice the brightest radiosity of the iteration before among the elements lit
+        // other than through links (emitters, and surfaces the sun or sky reaches): the most
+        // any leaf's irradiance from its links may reach (a surface lit only through links
+        // cannot be the brightest), with room for the kernels' sampling.
+        let bright = 2.0
+            * (0..el.len())
+                .filter(|&i| {
+                    el.elems[i].emission.max_element() > 0.0 || el.direct[i].max_element() > 0.0
+                })
+                .fold(0.0f64, |m, i| m.max(el.b[i].max_element()));
         let covers = &self.covers;
         let emission = self.cfg.cluster_emission;
         let deps = (&self.deposits[..], &self.dep_ranges[..]);
@@ -57,7 +70,11 @@ impl Solver<'_> {
                 while node != NONE {
                     if (node as usize) < cl_ranges.len() {
                         let (a, b) = cl_ranges[node as usize];
-                        for en in &entries[a as usize..b as usize] {
+                        let (c, d) = st_ranges[node as usize];
+                        for en in entries[a as usize..b as usize]
+                            .iter()
+                            .chain(&strata[c as usize..d as usize])
+                        {
                             let w = hand_out_weight(
                                 reception,
                                 emission,
@@ -92,7 +109,7 @@ impl Solver<'_> {
                 let (b, open) = push_rec(
                     el,
                     covers,
-                    (h_cluster, k_sum),
+                    (h_cluster, k_sum, bright),
                     deps,
                     r,
                     (hc, kc, &[]),
@@ -105,6 +122,7 @@ impl Solver<'_> {
             .collect();
         let mut pw = crate::stats::PowerStats::default();
         let mut gain_above_one = 0u64;
+        let mut above_brightest = 0u64;
         let mut ks = [0.0f64; 4];
         self.root_irr = Vec::with_capacity(results.len());
         for res in results {
@@ -117,6 +135,7 @@ impl Solver<'_> {
             pw.gathered += res.gathered;
             pw.gathered_cluster += res.gathered_cluster;
             gain_above_one += res.gain_above_one;
+            above_brightest += res.above_brightest;
             for (a, b) in ks.iter_mut().zip(res.k_stats) {
                 *a += b;
             }
@@ -131,6 +150,7 @@ impl Solver<'_> {
         pw.escaping = pw.radiosity - pw.gathered;
         self.stats.power = pw;
         self.stats.leaves_gain_above_one = gain_above_one;
+        self.stats.leaves_above_brightest = above_brightest;
         let a = ks[0].max(1e-300);
         self.stats.kernel_sum_mean = ks[1] / a;
         self.stats.kernel_sum_low = ks[2] / a;
@@ -170,7 +190,7 @@ impl Solver<'_> {
 fn push_rec(
     el: &Elements,
     covers: &Covers,
-    (h_cluster, k_sum): (&[f64], &[f64]),
+    (h_cluster, k_sum, bright): (&[f64], &[f64], f64),
     deps: Deposits,
     id: u32,
     down: (DVec3, f64, &[Carried]),
@@ -205,6 +225,7 @@ fn push_rec(
     });
     if e.num_children == 0 {
         out.gain_above_one += (e.rho.max_element() as f64 * k > 1.0) as u64;
+        out.above_brightest += (h.max_element() > bright) as u64;
         out.k_stats[0] += open_here;
         out.k_stats[1] += open_here * k;
         out.k_stats[2] += open_here * (k < 0.9) as u8 as f64;
@@ -238,7 +259,7 @@ fn push_rec(
         let (b, o) = push_rec(
             el,
             covers,
-            (h_cluster, k_sum),
+            (h_cluster, k_sum, bright),
             deps,
             c,
             (h, k, &per_child[j]),

@@ -163,6 +163,7 @@ impl Solver<'_> {
         };
         // The gather rebuilds its hand-outs and deposits from the refined links.
         self.entries = Vec::new();
+        self.strata = Vec::new();
         self.deposits = Vec::new();
         self.kept_links = 0;
         self.kept_gather_bytes = 0;
