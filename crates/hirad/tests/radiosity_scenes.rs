@@ -169,9 +169,10 @@ fn cornell_converges_as_eps_shrinks() {
 /// The number of shadow rays per link sets a link's noise, not its expectation: the office's
 /// light (Σ A·B over its surfaces) with one ray per link matches sixteen. Refinement that
 /// splits or keeps a link on its own rays' outcome, and receivers whose few points all fell
-/// under a cover (read as receiving nothing), left one ray 8.8% short of sixteen here; 2.8%
-/// remain (links kept because their samples' kernel came out below the estimate, and the
-/// isotropic cluster sources, which keep the rays they split on).
+/// under a cover (read as receiving nothing), left one ray 8.8% short of sixteen here, and
+/// judging the estimate on the kernel with visibility 2.1%; 1.8% remain (links kept because
+/// their sample points' kernel came out below the estimate, and the isotropic cluster
+/// sources, which keep the rays they split on).
 #[test]
 fn office_light_does_not_depend_on_the_shadow_rays_per_link() {
     let scene = Scene::load("office", &SceneOptions::default()).unwrap();

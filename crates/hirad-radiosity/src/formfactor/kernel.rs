@@ -29,6 +29,8 @@ use smallvec::SmallVec;
 pub struct KernelEval {
     /// The kernel with visibility (form factor receiver → source).
     pub k: f64,
+    /// The same samples' kernel without visibility.
+    pub ku: f64,
     /// Unoccluded estimate `F̃` (the `bf` oracle's quantity, per unit source radiosity).
     pub est: f64,
     /// Lower kernel bound (with visibility bounds), for the `error` oracle.
@@ -358,7 +360,7 @@ impl KernelCtx<'_> {
                 return self.near_field(&ri, &sj, m, n, est, &mut rng);
             }
         }
-        let mut sum = 0.0;
+        let (mut sum, mut sum_u) = (0.0, 0.0);
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
@@ -602,6 +604,7 @@ impl KernelCtx<'_> {
                 fmin = fmin.min(fx);
                 fmax = fmax.max(fx);
                 sum += fx * vis;
+                sum_u += fx;
                 if per_member {
                     members.push((member, (fx * vis) as f32));
                 }
@@ -626,7 +629,9 @@ impl KernelCtx<'_> {
             m.1 = (m.1 as f64 / n_open) as f32;
         }
         let mut k = sum / n_open;
+        let mut ku = sum_u / n_open;
         if recv_cdf.is_some() && k > 1.0 {
+            ku /= k;
             // A surface handed `k·max(0, n_k·d)` cannot get more than a form factor of 1.
             for m in &mut members {
                 m.1 /= k as f32;
@@ -705,6 +710,7 @@ impl KernelCtx<'_> {
         }
         KernelEval {
             k,
+            ku,
             est,
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,

@@ -177,6 +177,7 @@ impl KernelCtx<'_> {
         }
         KernelEval {
             k: fu * vis_sum / n as f64,
+            ku: fu,
             est,
             kmin: fmin * vmin,
             kmax: fmax.max(est) * vmax,

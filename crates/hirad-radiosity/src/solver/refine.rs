@@ -672,12 +672,14 @@ impl Solver<'_> {
             }
             // Where no bound judged the link, a sampled kernel above the estimate shows that
             // the estimate missed something (surfaces of a cluster much nearer the other end
-            // than its centre, or in front of a plane its centre lies behind): judge that.
-            // This keeps the links whose few samples came out low, a bias towards dark, which
-            // is why near links have the bound.
-            if !bounded && ev.k > link.est as f64 {
-                link.est = ev.k as f32;
-                if let Some(a) = split(ev.k) {
+            // than its centre, or in front of a plane its centre lies behind): judge that, on
+            // the samples' unoccluded kernel (the estimate's quantity), so that the rays'
+            // outcome does not choose which links stay. This keeps the links whose few sample
+            // points came out low, a bias towards dark, which is why near links have the
+            // bound.
+            if !bounded && ev.ku > link.est as f64 {
+                link.est = ev.ku as f32;
+                if let Some(a) = split(ev.ku) {
                     return (a, *l, rays, None);
                 }
             }
