@@ -54,9 +54,10 @@ pub struct KernelEval {
     pub draw: Deposit,
     /// Directional cluster receiver whose rays disagree: the strata around the surfaces whose
     /// samples saw the source (a surface, or a cluster below the receiver), each with its
-    /// irradiance per unit of the cluster's: the hand-out's power (`W = Σ A_s w_s` times the
-    /// cluster's irradiance) shared in proportion to what their samples received, over a
-    /// surface's area, or over a cluster's `W` (its surfaces then get it times their `w_s`).
+    /// irradiance per unit of the cluster's: the hand-out's power (`W = Σ A_s o_s w_s` times
+    /// the cluster's irradiance, `o_s` the open share) shared in proportion to what their
+    /// samples received, over a surface's open area, or over a cluster's `W` (its surfaces
+    /// then get it times their `w_s`).
     pub open_members: Vec<(u32, f32)>,
     /// Directional cluster receiver whose rays all saw the source: a child that no sample
     /// landed on does not see it (`KernelCtx::probe_children`).
