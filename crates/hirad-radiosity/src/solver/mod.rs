@@ -424,12 +424,13 @@ impl<'a> Solver<'a> {
                 rel
             ));
             tracing::debug!(
-                "iteration {it}: links {} elements {} deposits {} cluster entries {} power \
-                 {p:.6e} change {rel:.2e}",
+                "iteration {it}: links {} elements {} deposits {} cluster entries {} strata {} \
+                 power {p:.6e} change {rel:.2e}",
                 self.set.len(),
                 self.el.len(),
                 self.deposits.len(),
-                self.entries.len()
+                self.entries.len(),
+                self.strata.len()
             );
             if it > 1 && rel < self.cfg.tol_converge {
                 if refined {
