@@ -329,13 +329,7 @@ impl KernelCtx<'_> {
     /// below `recv` whose open hand-out weight `W = Σ A_k o_k w_k` (`o_k` the open share)
     /// reaches `target` (the receiver's `W` over its samples), or the child of `recv` above
     /// `member` when none does. Returns it with its `W`.
-    pub(crate) fn hand_out_stratum(
-        &self,
-        recv: u32,
-        member: u32,
-        src: u32,
-        target: f64,
-    ) -> (u32, f64) {
+    pub fn hand_out_stratum(&self, recv: u32, member: u32, src: u32, target: f64) -> (u32, f64) {
         let el = self.elems;
         let se = &el.elems[src as usize];
         let (mut at, mut w) = (member, self.open_weight(member, se));

@@ -485,3 +485,65 @@ fn directional_projected_area_expansion() {
     }
     println!("{checked} directions: largest error {worst:.4}·ΣA (bound {SH2_ERROR:.4})");
 }
+
+#[test]
+fn an_open_members_stratum_is_the_part_of_the_cluster_one_sample_stands_for() {
+    use hirad::radiosity::cluster_model::facing_weight;
+    use hirad::radiosity::element::{Elements, Kind};
+    use hirad::radiosity::visibility::Visibility;
+    // For every cluster of the random cloud as receiver, every surface below it and several
+    // targets: the stratum is the lowest of the surface and its ancestors below the receiver
+    // whose hand-out weight Σ A_k w_k towards the square reaches the target (the receiver's
+    // child above the surface when none does), and its weight is the brute-force sum over the
+    // leaves below it.
+    let scene = cloud_scene(false);
+    let (tree, _) = cloud_tree(&scene);
+    let el = Elements::build(&scene, &tree, false);
+    let vis = Visibility::new(&scene, &tree, VisibilityMode::None, 0.1).unwrap();
+    let ctx = hirad::radiosity::formfactor::KernelCtx {
+        emission: ClusterEmission::Directional,
+        ..isotropic_ctx(&el, &tree, &vis)
+    };
+    let src = el.first_root + scene.num_triangles() as u32 - 1;
+    let se = &el.elems[src as usize];
+    let weight = |id: u32| {
+        let mut leaves = Vec::new();
+        el.leaves_of(id, &mut leaves);
+        leaves
+            .iter()
+            .map(|&s| {
+                let e = &el.elems[s as usize];
+                e.area as f64 * facing_weight(e.centroid, e.normal, se.centroid, se.normal)
+            })
+            .sum::<f64>()
+    };
+    let mut checked = 0;
+    let mut rng = SplitMix64::new(7);
+    for recv in 0..el.num_clusters {
+        let mut members = Vec::new();
+        el.leaves_of(recv, &mut members);
+        for _ in 0..members.len().min(8) {
+            let m = members[(rng.next_u64() % members.len() as u64) as usize];
+            for n in [1.0, 4.0, 16.0, 1e3] {
+                let target = weight(recv) / n;
+                let (at, w) = ctx.hand_out_stratum(recv, m, src, target);
+                // The chain from the surface up to the receiver's child.
+                let mut chain = vec![m];
+                while el.elems[*chain.last().unwrap() as usize].parent != recv {
+                    chain.push(el.elems[*chain.last().unwrap() as usize].parent);
+                }
+                let want = *chain
+                    .iter()
+                    .find(|&&c| weight(c) >= target)
+                    .unwrap_or(chain.last().unwrap());
+                assert_eq!(at, want, "receiver {recv}, surface {m}, target {target}");
+                assert!(el.elems[at as usize].kind == Kind::Cluster || at == m);
+                let rel = (w - weight(at)).abs() / weight(at).max(1e-30);
+                assert!(rel < 1e-9, "weight {w} against {}", weight(at));
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100, "{checked} strata checked");
+    println!("{checked} strata checked");
+}
