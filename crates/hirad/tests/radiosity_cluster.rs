@@ -491,7 +491,7 @@ fn an_open_members_stratum_is_the_part_of_the_cluster_one_sample_stands_for() {
     use hirad::radiosity::cluster_model::facing_weight;
     use hirad::radiosity::element::{Elements, Kind};
     use hirad::radiosity::visibility::Visibility;
-    // For every cluster of the random cloud as receiver, every surface below it and several
+    // For every cluster of the random cloud as receiver, up to eight surfaces below it and four
     // targets: the stratum is the lowest of the surface and its ancestors below the receiver
     // whose hand-out weight Σ A_k w_k towards the square reaches the target (the receiver's
     // child above the surface when none does), and its weight is the brute-force sum over the
