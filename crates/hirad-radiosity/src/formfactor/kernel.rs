@@ -438,10 +438,7 @@ impl KernelCtx<'_> {
         // which grows as the rays per link fall).
         // A surface receiver that push-pull found entirely covered has no open part to find.
         let may_open = match ri {
-            End::Surface { .. } => {
-                let open = self.elems.open[i as usize];
-                open.is_nan() || open > 0.0
-            }
+            End::Surface { .. } => self.elems.open_share(i) > 0.0,
             End::Cluster { .. } => true,
         };
         for round in 0..COVER_POINTS.div_ceil(n) {
@@ -665,9 +662,6 @@ impl KernelCtx<'_> {
             }
         }
         let mixed = open && blocked;
-        // The hand-out would deliver `k·B·W` to the cluster's surfaces in proportion to
-        // `A_s w_s`; when the rays disagree, the surfaces whose samples saw the source share it
-        // in proportion to what their samples received, and the others get nothing.
         // The hand-out delivers `k·B·W` over the receiver's open parts (`W = Σ A_s o_s w_s`,
         // `o_s` the open share), of which each of its counted points stands for `W / n`: a
         // surface whose sample saw the source shares its part of the light with the surfaces

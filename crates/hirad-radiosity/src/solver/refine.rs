@@ -644,7 +644,8 @@ impl Solver<'_> {
                 rays += ev.rays;
             }
             // A kept link into a directional cluster whose rays disagree hands its light to
-            // the surfaces its samples saw, in proportion to what they received: a few samples
+            // the surfaces its samples saw and the parts of the cluster around them, in
+            // proportion to what they received (`KernelEval::open_members`): a few samples
             // would pour a whole cluster's light onto a few (possibly tiny) surfaces. The
             // shares come from a denser, independent draw instead; the light, its total, stays
             // this link's.
