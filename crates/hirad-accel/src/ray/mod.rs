@@ -692,14 +692,13 @@ impl<'a> RayCaster<'a> {
                 // One decision over the node's (up to eight) lanes, in lane order.
                 let mut mask = 0u32;
                 let mut first = 0u32;
-                let ga = &l.groups[g0];
+                let gs = &l.groups[g0..g0 + ng];
+                let ga = &gs[0];
                 // A node of one group is tested as two, the second empty, so that the number
                 // of groups decides no branch of the AVX2 copy.
-                let (gb, fb) = if ng == 2 {
-                    (&l.groups[g0 + 1], l.faces[g0 + 1])
-                } else {
-                    (&Group::EMPTY, 0)
-                };
+                let two = ng == 2;
+                let gb = std::hint::select_unpredictable(two, &gs[ng - 1], &Group::EMPTY);
+                let fb = std::hint::select_unpredictable(two, l.faces[g0 + ng - 1], 0);
                 let all = if WIDE {
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`).
@@ -713,7 +712,8 @@ impl<'a> RayCaster<'a> {
                 if STATS {
                     stats.boxes += (ga.lanes + gb.lanes) as u64;
                 }
-                if ga.eager | gb.eager == 0 {
+                let eager = ga.eager | gb.eager != 0;
+                if !eager {
                     mask = all;
                 } else {
                     for (j, g) in [ga, gb].into_iter().enumerate() {
@@ -725,13 +725,19 @@ impl<'a> RayCaster<'a> {
                         first |= ((g.eager >> 4) as u32) << (4 * j);
                     }
                 }
-                next = descend(&mut stack, l, mask, first, |i| {
-                    if i < 4 {
-                        ga.child[i]
-                    } else {
-                        gb.child[i & 3]
+                if !eager {
+                    if mask != 0 {
+                        // The highest lane is visited next, read straight from its group; the
+                        // others are pushed without a branch per lane (in lane order, the
+                        // highest on top, as `descend` orders them) beside that read, off its
+                        // path (perf-log 29).
+                        let hi = 31 - mask.leading_zeros() as usize;
+                        stack.push8([&ga.child, &gb.child], mask & !(1 << hi));
+                        next = Some([ga, gb][hi >> 2].child[hi & 3]);
                     }
-                });
+                } else {
+                    next = descend(&mut stack, l, mask, first, |i| gs[i >> 2].child[i & 3]);
+                }
             } else {
                 for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
                     if STATS {
