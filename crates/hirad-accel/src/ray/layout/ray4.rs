@@ -35,10 +35,11 @@ impl Ray4 {
             self.inv[a] = [r.inv[a]; 4];
             // Plane indices are in 0..6 (RayPre's contract); keep that invariant for the
             // unchecked loads of `test`.
-            self.near[a] = r.near[a] % 6;
-            self.far[a] = r.far[a] % 6;
+            self.near[a] = r.near[a].min(5);
+            self.far[a] = r.far[a].min(5);
         }
-        self.in_plane = (0..3).filter(|&a| r.d[a] == 0.0).fold(0, |m, a| m | 1 << a);
+        self.in_plane =
+            (r.d[0] == 0.0) as u32 | ((r.d[1] == 0.0) as u32) << 1 | ((r.d[2] == 0.0) as u32) << 2;
     }
 
     /// Lanes of `g` that the ray only touches along a face: it lies in the plane of a face of
