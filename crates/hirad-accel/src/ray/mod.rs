@@ -694,21 +694,26 @@ impl<'a> RayCaster<'a> {
                 let mut first = 0u32;
                 let gs = &l.groups[g0..g0 + ng];
                 let ga = &gs[0];
-                // A node of one group is tested as two, the second empty, so that the number
-                // of groups decides no branch of the AVX2 copy.
+                // The group after the first is tested whatever node it belongs to, so that its
+                // loads do not wait for the group count; its lanes count only for a node of two
+                // groups (a node of one is tested as two, the second empty).
                 let two = ng == 2;
-                let gb = std::hint::select_unpredictable(two, &gs[ng - 1], &Group::EMPTY);
-                let fb = std::hint::select_unpredictable(two, l.faces[g0 + ng - 1], 0);
-                let all = if WIDE {
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`).
-                    let m = unsafe { r4.test8((ga, gb), (l.faces[g0], fb), tmin, tmax) }.0;
-                    #[cfg(not(target_arch = "x86_64"))]
-                    let m = unreachable!("the AVX2 copy exists only on x86_64");
-                    m
-                } else {
-                    r4.test(ga, &l.faces[g0], tmin, tmax).0 | r4.test(gb, &fb, tmin, tmax).0 << 4
-                };
+                let gn = (g0 + 1).min(l.groups.len() - 1);
+                let (g1, f1) = (&l.groups[gn], l.faces[gn]);
+                let gb = std::hint::select_unpredictable(two, g1, &Group::EMPTY);
+                let lanes = std::hint::select_unpredictable(two, 0xFF, 0xF);
+                let all = lanes
+                    & if WIDE {
+                        #[cfg(target_arch = "x86_64")]
+                        // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`).
+                        let m = unsafe { r4.test8((ga, g1), (l.faces[g0], f1), tmin, tmax) }.0;
+                        #[cfg(not(target_arch = "x86_64"))]
+                        let m = unreachable!("the AVX2 copy exists only on x86_64");
+                        m
+                    } else {
+                        r4.test(ga, &l.faces[g0], tmin, tmax).0
+                            | r4.test(g1, &f1, tmin, tmax).0 << 4
+                    };
                 if STATS {
                     stats.boxes += (ga.lanes + gb.lanes) as u64;
                 }
@@ -732,8 +737,8 @@ impl<'a> RayCaster<'a> {
                         // highest on top, as `descend` orders them) beside that read, off its
                         // path (perf-log 29).
                         let hi = 31 - mask.leading_zeros() as usize;
-                        stack.push8([&ga.child, &gb.child], mask & !(1 << hi));
-                        next = Some([ga, gb][hi >> 2].child[hi & 3]);
+                        stack.push8([&ga.child, &g1.child], mask & !(1 << hi));
+                        next = Some([ga, g1][hi >> 2].child[hi & 3]);
                     }
                 } else {
                     next = descend(&mut stack, l, mask, first, |i| gs[i >> 2].child[i & 3]);
