@@ -696,7 +696,7 @@ impl<'a> RayCaster<'a> {
                 let ga = &gs[0];
                 // The group after the first is tested whatever node it belongs to, so that its
                 // loads do not wait for the group count; its lanes count only for a node of two
-                // groups (a node of one is tested as two, the second empty).
+                // groups (a node of one is tested as two, the second masked out).
                 let two = ng == 2;
                 let gn = (g0 + 1).min(l.groups.len() - 1);
                 let (g1, f1) = (&l.groups[gn], l.faces[gn]);

@@ -426,6 +426,37 @@ fn closest_is_nearest_through_inner_node() {
 }
 
 #[test]
+fn eight_lanes_push_as_one_by_one_in_lane_order() {
+    // `push8` against `push` of the selected lanes in lane order, on a stack that fits them
+    // and on one that spills part way (its fixed array too small for eight more).
+    let mut g = hirad_core::rng::SplitMix64::new(9);
+    for round in 0..200 {
+        let mut fast: Stack<u32, 24> = Stack::new();
+        let mut slow: Stack<u32, 24> = Stack::new();
+        let mut small_fast: Stack<u32, 8> = Stack::new();
+        let mut small_slow: Stack<u32, 8> = Stack::new();
+        for k in 0..4 {
+            let a: [u32; 4] = std::array::from_fn(|i| (100 * round + 10 * k + i) as u32);
+            let b: [u32; 4] = std::array::from_fn(|i| (100 * round + 10 * k + 4 + i) as u32);
+            let mask = (g.next_u64() & 0xFF) as u32;
+            fast.push8([&a, &b], mask);
+            small_fast.push8([&a, &b], mask);
+            for i in 0..8 {
+                if mask >> i & 1 == 1 {
+                    let c = if i < 4 { a[i] } else { b[i - 4] };
+                    slow.push(c);
+                    small_slow.push(c);
+                }
+            }
+        }
+        let all = |s: &mut Stack<u32, 24>| std::iter::from_fn(|| s.pop()).collect::<Vec<_>>();
+        assert_eq!(all(&mut fast), all(&mut slow));
+        let all8 = |s: &mut Stack<u32, 8>| std::iter::from_fn(|| s.pop()).collect::<Vec<_>>();
+        assert_eq!(all8(&mut small_fast), all8(&mut small_slow));
+    }
+}
+
+#[test]
 fn stack_spills_to_heap_in_order() {
     let mut s: Stack<u32, 4> = Stack::new();
     for i in 0..10 {
