@@ -22,6 +22,7 @@ use crate::formfactor::near_field::end_sphere;
 use crate::formfactor::KernelCtx;
 use glam::{DVec3, Vec3};
 use hirad_accel::cluster::NONE;
+use smallvec::{smallvec, SmallVec};
 use std::f64::consts::PI;
 
 /// Largest error of the order-2 spherical-harmonic expansion of `max(0, t)` on [−1, 1]
@@ -304,7 +305,7 @@ impl KernelCtx<'_> {
         let el = self.elems;
         let se = &el.elems[src as usize];
         let mut out = Vec::new();
-        let mut stack = vec![node];
+        let mut stack: SmallVec<[u32; 64]> = smallvec![node];
         let mut acc = 0.0f64;
         while let Some(id) = stack.pop() {
             for c in el.children(id) {
@@ -352,7 +353,7 @@ impl KernelCtx<'_> {
     fn hand_out_total(&self, id: u32, src: &Element) -> f64 {
         let el = self.elems;
         let mut w = 0.0;
-        let mut stack = vec![id];
+        let mut stack: SmallVec<[u32; 64]> = smallvec![id];
         while let Some(id) = stack.pop() {
             match el.elems[id as usize].kind {
                 Kind::Cluster => stack.extend(el.children(id)),

@@ -14,7 +14,7 @@
 
 use super::push_pull::open_area;
 use super::{Solver, STRADDLES};
-use crate::element::{Elements, Kind};
+use crate::element::{Element, Elements, Kind};
 use crate::link::Deposit;
 use crate::oracle;
 use crate::overlap::Covers;
@@ -68,6 +68,19 @@ pub(super) struct Entry {
     pub(super) h: DVec3,
     /// Kernel.
     pub(super) k: f32,
+}
+
+impl Entry {
+    /// What cluster `recv` receives from `src`: irradiance `h`, kernel `k`.
+    fn new(recv: &Element, src: &Element, h: DVec3, k: f32) -> Entry {
+        Entry {
+            d: (src.centroid - recv.centroid).normalize_or_zero(),
+            sc: src.centroid,
+            sn: src.facing_normal(),
+            h,
+            k,
+        }
+    }
 }
 
 impl Solver<'_> {
@@ -175,17 +188,7 @@ impl Solver<'_> {
                                     let h = contrib * f as f64;
                                     let me = &el.elems[m as usize];
                                     if me.kind == Kind::Cluster {
-                                        let d = (se.centroid - me.centroid).normalize_or_zero();
-                                        g.strata.push((
-                                            m,
-                                            Entry {
-                                                d,
-                                                sc: se.centroid,
-                                                sn: se.facing_normal(),
-                                                h,
-                                                k: 0.0,
-                                            },
-                                        ));
+                                        g.strata.push((m, Entry::new(me, se, h, 0.0)));
                                     } else {
                                         g.open.push((m, h));
                                     }
@@ -194,14 +197,7 @@ impl Solver<'_> {
                                 slot.next().expect("an entry per link").h = contrib;
                             } else if re.kind == Kind::Cluster {
                                 let se = &el.elems[l.src as usize];
-                                let d = (se.centroid - re.centroid).normalize_or_zero();
-                                g.entries.push(Entry {
-                                    d,
-                                    sc: se.centroid,
-                                    sn: se.facing_normal(),
-                                    h: contrib,
-                                    k: l.k,
-                                });
+                                g.entries.push(Entry::new(re, se, contrib, l.k));
                             } else {
                                 if re.num_children > 0 {
                                     lights.push((l.deposit, contrib.element_sum()));
