@@ -694,12 +694,12 @@ impl<'a> RayCaster<'a> {
                 let mut first = 0u32;
                 let gs = &l.groups[g0..g0 + ng];
                 let ga = &gs[0];
-                // The group after the first is tested whatever node it belongs to, so that its
-                // loads do not wait for the group count; its lanes count only for a node of two
-                // groups (a node of one is tested as two, the second masked out).
+                // The group after the first (the layout ends with an empty group) is tested
+                // whatever node it belongs to, so that its loads do not wait for the group
+                // count; its lanes count only for a node of two groups (a node of one is tested
+                // as two, the second masked out).
                 let two = ng == 2;
-                let gn = (g0 + 1).min(l.groups.len() - 1);
-                let (g1, f1) = (&l.groups[gn], l.faces[gn]);
+                let (g1, f1) = (&l.groups[g0 + 1], l.faces[g0 + 1]);
                 let gb = std::hint::select_unpredictable(two, g1, &Group::EMPTY);
                 let lanes = std::hint::select_unpredictable(two, 0xFF, 0xF);
                 let all = lanes

@@ -132,7 +132,8 @@ fn layout_is_depth_first_with_inner_surfaces() {
         // leaf is encoded in place and holds triangle 0 in the second packet. With tight boxes
         // the root's triangle has a box of its own in the second lane.
         assert_eq!(l.root, Some(0));
-        assert_eq!(l.groups.len(), 1);
+        // One group, and the empty one past the last.
+        assert_eq!(l.groups.len(), 2);
         let g = &l.groups[0];
         let (lanes, run) = match boxes {
             Boxes::Tight | Boxes::Nodes => (2, 0b10),
@@ -309,7 +310,8 @@ fn rays_pass_through_nodes_holding_only_one_child() {
         (Boxes::Cluster, 2, 3),
     ] {
         let rc = RayCaster::with_boxes(&s, &t, boxes);
-        assert_eq!(rc.layout.groups.len(), groups, "{boxes:?}");
+        // The groups, and the empty one past the last.
+        assert_eq!(rc.layout.groups.len(), groups + 1, "{boxes:?}");
         let mut st = RayStats::default();
         assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
         assert_eq!((st.nodes, st.tris), (nodes, 1), "{boxes:?}");
@@ -346,7 +348,11 @@ fn packets_and_groups_hold_wide_nodes() {
     let t = one_leaf_per_triangle(&s);
     let rc = RayCaster::new(&s, &t);
     let l = &rc.layout;
-    assert_eq!(l.groups.len(), 2);
+    assert_eq!(
+        l.groups.len(),
+        3,
+        "two groups and the empty one past the last"
+    );
     assert_eq!((l.groups[0].num_groups, l.groups[0].lanes), (2, 4));
     assert_eq!(l.groups[1].lanes, 2);
     assert_eq!(l.packets.len(), 6);

@@ -106,6 +106,8 @@ pub(in crate::ray) struct Layout {
     pub root_box: [f32; 6],
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
+    /// The nodes' groups, and one empty group past the last, so that the group after any
+    /// node's first exists (the traversal loads it before it knows the node's group count).
     pub groups: Vec<Group>,
     /// Per group, 6 bits per lane ([`faces::face_bits`]): bit `a` (`3 + a`) set when everything in
     /// the lane that touches the plane of the box's min (max) face along axis `a` lies in
@@ -118,8 +120,8 @@ pub(in crate::ray) struct Layout {
 }
 
 impl Layout {
-    /// Check the references: from the root, every lane with a box refers to a group in range
-    /// or a run whose packets are in range, and every triangle of the scene (`num_tris`) is
+    /// Check the references: the groups end with an empty one; from the root, every lane with
+    /// a box refers to a group in range or a run whose packets are in range, and every triangle of the scene (`num_tris`) is
     /// stored in a run some reference reaches.
     pub(in crate::ray) fn validate(&self, num_tris: usize) -> Result<(), String> {
         let Some(root) = self.root else {
@@ -129,6 +131,13 @@ impl Layout {
                 Err("no root".into())
             };
         };
+        if self
+            .groups
+            .last()
+            .is_none_or(|g| g.lanes != 0 || g.num_groups != 0)
+        {
+            return Err("no empty group past the last".into());
+        }
         let mut seen = vec![false; num_tris];
         let mut visited = vec![false; self.groups.len()];
         let mut stack = vec![root];
