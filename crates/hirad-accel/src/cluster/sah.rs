@@ -9,7 +9,9 @@
 //! `sah_leaf_size` surfaces is always split: the centroids are binned into [`BINS`] equal bins
 //! along each axis of the centroid bounds, and the plane between bins minimising
 //! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
-//! then lowest plane). When all centroids coincide the surfaces are split in two halves of the
+//! then lowest plane). A node of at most [`SWEEP_MAX`] surfaces is split exactly instead: every
+//! position of the surfaces sorted by centroid along each axis is costed the same way
+//! ([`sweep`]). When all centroids coincide the surfaces are split in two halves of the
 //! (deterministic) current order. Below depth `max_depth/2` (reached only by pathological
 //! centroid distributions, e.g. exponentially spaced) nodes are split at the centroid median
 //! of their widest centroid axis instead, which bounds the depth by `max_depth/2 + log2(n)`.
@@ -103,6 +105,9 @@ fn split(p: &Params, items: &mut [Item], depth: usize) -> (Aabb, Option<usize>) 
         });
         return (bbox, Some(n / 2));
     }
+    if n <= SWEEP_MAX {
+        return (bbox, Some(sweep(items)));
+    }
     let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin of the left side)
     for a in 0..3 {
         if !ext[a].is_finite() || ext[a] <= 0.0 {
@@ -151,6 +156,40 @@ fn split(p: &Params, items: &mut [Item], depth: usize) -> (Aabb, Option<usize>) 
         None => n / 2,
     };
     (bbox, Some(nl))
+}
+
+/// Largest node split by [`sweep`] instead of bins.
+pub const SWEEP_MAX: usize = 64;
+
+/// The exact object split of a small node: on each axis the items sorted by centroid (ties by
+/// id), every split position costed as `area(left)·n(left) + area(right)·n(right)`; the
+/// cheapest (ties: lowest axis, then lowest position) is applied. Returns the left size.
+fn sweep(items: &mut [Item]) -> usize {
+    let n = items.len();
+    let key = |a: usize| move |x: &Item, y: &Item| x.c[a].total_cmp(&y.c[a]).then(x.id.cmp(&y.id));
+    let mut right = vec![0f32; n];
+    let mut best: Option<(f32, usize, usize)> = None;
+    for a in 0..3 {
+        items.sort_unstable_by(key(a));
+        let mut acc = Aabb::EMPTY;
+        for i in (1..n).rev() {
+            acc.grow(items[i].lo);
+            acc.grow(items[i].hi);
+            right[i] = acc.surface_area() * (n - i) as f32;
+        }
+        let mut acc = Aabb::EMPTY;
+        for i in 1..n {
+            acc.grow(items[i - 1].lo);
+            acc.grow(items[i - 1].hi);
+            let cost = acc.surface_area() * i as f32 + right[i];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, a, i));
+            }
+        }
+    }
+    let (_, a, i) = best.expect("a node to split has two items or more");
+    items.sort_unstable_by(key(a));
+    i
 }
 
 /// Emit a node.
@@ -203,4 +242,68 @@ fn node_par(p: &Params, items: &mut [Item], depth: usize) -> (Out, Option<u32>) 
     let children = out.append_all(vec![a, b]);
     let id = finish(&[], children, bbox, &mut out);
     (out, Some(id))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// `area(left)·n(left) + area(right)·n(right)` of a split, boxes grown from scratch.
+    fn cost(left: &[Item], right: &[Item]) -> f32 {
+        let area = |s: &[Item]| {
+            let mut b = Aabb::EMPTY;
+            for it in s {
+                b.grow(it.lo);
+                b.grow(it.hi);
+            }
+            b.surface_area() * s.len() as f32
+        };
+        area(left) + area(right)
+    }
+
+    #[test]
+    fn sweep_finds_the_cheapest_split_of_every_axis_order() {
+        // Deterministic pseudo-random boxes of varied sizes.
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for n in [2usize, 3, 7, 20, 64] {
+            let mut items: Vec<Item> = (0..n as u32)
+                .map(|id| {
+                    let c = Vec3::new(rnd(), rnd(), rnd()) * 10.0;
+                    let h = Vec3::new(rnd(), rnd(), rnd()) * if id % 3 == 0 { 4.0 } else { 0.3 };
+                    Item {
+                        lo: c - h,
+                        hi: c + h,
+                        c,
+                        id,
+                    }
+                })
+                .collect();
+            // Brute force: every position of every axis order.
+            let mut best = f32::INFINITY;
+            for a in 0..3 {
+                let mut v = items.clone();
+                v.sort_by(|x, y| x.c[a].total_cmp(&y.c[a]).then(x.id.cmp(&y.id)));
+                for i in 1..n {
+                    best = best.min(cost(&v[..i], &v[i..]));
+                }
+            }
+            let nl = sweep(&mut items);
+            assert!((1..n).contains(&nl));
+            let got = cost(&items[..nl], &items[nl..]);
+            assert!(
+                (got - best).abs() <= 1e-4 * best,
+                "n {n}: {got} against {best}"
+            );
+            let mut ids: Vec<u32> = items.iter().map(|it| it.id).collect();
+            ids.sort_unstable();
+            assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
+        }
+    }
 }
