@@ -6,6 +6,10 @@
 //! two triangles whose normals turn by at most [`CREASE_DEG`]. Clusters (`spec/clustering.md`):
 //! - above the objects, PROXI's bottom-up proximity clusters, built by [`proxi::build_subset`]
 //!   over one box per object (an object of a single triangle is attached as that surface);
+//! - except where objects interleave: an object whose box holds more of other objects' leaf
+//!   clusters than of its own (surface areas of the leaf boxes, the others' clipped to its box)
+//!   does not stand as one cluster; its child clusters take its place, recursively (the
+//!   branches of a tree among the others' leaves), and PROXI groups those;
 //! - an object is one cluster, split top-down while it holds more than [`LEAF_SURFACES`]
 //!   surfaces into [`WIDTH`] children by halving the largest part: a part spanning several
 //!   patches between patches along the principal axis of their centroids, a part within one
@@ -620,8 +624,62 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         obj_prims.centroid.push(bbox.center());
         obj_prims.area.push(area);
     }
+    // An object whose box holds more of other objects' leaf clusters than of its own (it
+    // interleaves with them) is replaced by its child clusters, and so on down, before the
+    // upper hierarchy.
+    let mut area_of = vec![0f32; t.nodes.len()];
+    // Summed surface area of the leaf clusters' boxes below each cluster.
+    let mut leaf_sa = vec![0f64; t.nodes.len()];
+    for i in 0..t.nodes.len() {
+        let n = &t.nodes[i];
+        area_of[i] = n
+            .surfaces
+            .iter()
+            .map(|&s| prims.area[s as usize])
+            .sum::<f32>()
+            + n.children.iter().map(|&c| area_of[c as usize]).sum::<f32>();
+        leaf_sa[i] = if n.children.is_empty() {
+            n.bbox.surface_area() as f64
+        } else {
+            n.children.iter().map(|&c| leaf_sa[c as usize]).sum()
+        };
+    }
+    let (leaf_box, leaf_obj) = leaves_by_object(&t, &object_root, &obj_prims.bbox);
+    let crowd = Crowd::new(&leaf_box, &leaf_obj);
+    // Units: (object root or MAX, object, box, area).
+    let units: Vec<(u32, usize, Aabb, f32)> = (0..rec.num_objects)
+        .into_par_iter()
+        .flat_map_iter(|o| {
+            let mut out = Vec::new();
+            if object_root[o] == u32::MAX {
+                out.push((u32::MAX, o, obj_prims.bbox[o], obj_prims.area[o]));
+                return out;
+            }
+            let mut stack = vec![object_root[o]];
+            while let Some(u) = stack.pop() {
+                let n = &t.nodes[u as usize];
+                if !n.children.is_empty() && crowd.crowded(&n.bbox, o, leaf_sa[u as usize]) {
+                    stack.extend(n.children.iter().rev().copied());
+                } else {
+                    out.push((u, o, n.bbox, area_of[u as usize]));
+                }
+            }
+            out
+        })
+        .collect();
+    let object_root: Vec<u32> = units.iter().map(|u| u.0).collect();
+    let unit_object: Vec<usize> = units.iter().map(|u| u.1).collect();
+    let obj_prims = Prims {
+        bbox: units.iter().map(|u| u.2).collect(),
+        centroid: units.iter().map(|u| u.2.center()).collect(),
+        area: units.iter().map(|u| u.3).collect(),
+        object: vec![0; units.len()],
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        material: Vec::new(),
+    };
     // Upper hierarchy: PROXI over one box per object.
-    let all: Vec<u32> = (0..rec.num_objects as u32).collect();
+    let all: Vec<u32> = (0..units.len() as u32).collect();
     let mut upper = BuildTree::default();
     let upper_root = proxi::build_subset(&obj_prims, &all, cfg, &mut upper);
     let base = t.nodes.len() as u32;
@@ -633,7 +691,9 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         };
         for o in node.surfaces {
             match object_root[o as usize] {
-                u32::MAX => mapped.surfaces.push(by_object[first[o as usize]]),
+                u32::MAX => mapped
+                    .surfaces
+                    .push(by_object[first[unit_object[o as usize]]]),
                 r => mapped.children.push(r),
             }
         }
@@ -659,6 +719,92 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         rec.num_vertices
     ));
     t
+}
+
+/// The leaf clusters of every object (an object of one surface: its box), with their object.
+fn leaves_by_object(
+    t: &BuildTree,
+    object_root: &[u32],
+    object_box: &[Aabb],
+) -> (Vec<Aabb>, Vec<usize>) {
+    let (mut boxes, mut objs) = (Vec::new(), Vec::new());
+    for (o, &r) in object_root.iter().enumerate() {
+        if r == u32::MAX {
+            boxes.push(object_box[o]);
+            objs.push(o);
+            continue;
+        }
+        let mut stack = vec![r];
+        while let Some(n) = stack.pop() {
+            let node = &t.nodes[n as usize];
+            if node.children.is_empty() {
+                boxes.push(node.bbox);
+                objs.push(o);
+            }
+            stack.extend(node.children.iter().copied());
+        }
+    }
+    (boxes, objs)
+}
+
+/// The leaf clusters of all objects in a [`super::sah`] tree, to measure how much of other
+/// objects lies in a box.
+struct Crowd<'a> {
+    boxes: &'a [Aabb],
+    object: &'a [usize],
+    tree: BuildTree,
+}
+
+impl<'a> Crowd<'a> {
+    fn new(boxes: &'a [Aabb], object: &'a [usize]) -> Self {
+        let prims = Prims {
+            bbox: boxes.to_vec(),
+            centroid: boxes.iter().map(|b| b.center()).collect(),
+            area: boxes.iter().map(|b| b.surface_area()).collect(),
+            object: vec![0; boxes.len()],
+            positions: Vec::new(),
+            triangles: Vec::new(),
+            material: Vec::new(),
+        };
+        let tree = if boxes.is_empty() {
+            BuildTree::default()
+        } else {
+            super::sah::build(&prims, &ClusterConfig::default())
+        };
+        Crowd {
+            boxes,
+            object,
+            tree,
+        }
+    }
+
+    /// Whether the intersections of `b` with the leaf boxes of objects other than `o` have more
+    /// surface area than `own` (the leaf boxes of what `b` bounds).
+    fn crowded(&self, b: &Aabb, o: usize, own: f64) -> bool {
+        if self.tree.nodes.is_empty() {
+            return false;
+        }
+        let overlaps = |a: &Aabb, b: &Aabb| a.min.cmple(b.max).all() && b.min.cmple(a.max).all();
+        let mut sum = 0f64;
+        let mut stack = vec![self.tree.root];
+        while let Some(n) = stack.pop() {
+            let node = &self.tree.nodes[n as usize];
+            if !overlaps(&node.bbox, b) {
+                continue;
+            }
+            stack.extend(node.children.iter().copied());
+            for &j in &node.surfaces {
+                let l = &self.boxes[j as usize];
+                if self.object[j as usize] != o && overlaps(l, b) {
+                    sum += Aabb::new(b.min.max(l.min), b.max.min(l.max)).surface_area() as f64;
+                    if sum > own {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
 }
 
 #[cfg(test)]
@@ -714,5 +860,49 @@ mod tests {
         ];
         let r = reconstruct(&Prims::from_triangles(&t));
         assert_eq!((r.num_objects, r.num_patches), (1, 3));
+    }
+}
+
+#[cfg(test)]
+mod crowd_tests {
+    use super::*;
+
+    fn cube(lo: Vec3, s: f32) -> Aabb {
+        Aabb::new(lo, lo + Vec3::splat(s))
+    }
+
+    #[test]
+    fn a_box_is_crowded_by_other_objects_leaves_only() {
+        // A 10 × 1 × 1 box of an object whose own leaf boxes sum to 40 in surface area; the
+        // other object's leaves: unit cubes (area 6 each).
+        let big = Aabb::new(Vec3::ZERO, Vec3::new(10.0, 1.0, 1.0));
+        let inside: Vec<Aabb> = (0..10)
+            .map(|i| cube(Vec3::new(i as f32, 0.0, 0.0), 1.0))
+            .collect();
+        let far: Vec<Aabb> = (0..10)
+            .map(|i| cube(Vec3::new(20.0 + i as f32, 0.0, 0.0), 1.0))
+            .collect();
+        // Ten inside its box: 60 > 40.
+        let c = Crowd::new(&inside, &[1; 10]);
+        assert!(c.crowded(&big, 0, 40.0));
+        // Not when it holds more of its own.
+        assert!(!c.crowded(&big, 0, 60.0));
+        // The same leaves as its own object's: not counted.
+        let c = Crowd::new(&inside, &[0; 10]);
+        assert!(!c.crowded(&big, 0, 40.0));
+        // Far away: nothing inside.
+        let c = Crowd::new(&far, &[1; 10]);
+        assert!(!c.crowded(&big, 0, 40.0));
+        // Six cubes inside (36): not crowded; seven (42): crowded.
+        let c = Crowd::new(&inside[..6], &[1; 6]);
+        assert!(!c.crowded(&big, 0, 40.0));
+        let c = Crowd::new(&inside[..7], &[1; 7]);
+        assert!(c.crowded(&big, 0, 40.0));
+        // Clipped to the box: cubes half outside count half their faces' area.
+        let shifted: Vec<Aabb> = (0..10)
+            .map(|i| cube(Vec3::new(i as f32, 0.5, 0.0), 1.0))
+            .collect();
+        let c = Crowd::new(&shifted, &[1; 10]);
+        assert!(c.crowded(&big, 0, 39.0) && !c.crowded(&big, 0, 40.0));
     }
 }
