@@ -11,7 +11,7 @@
 //! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
 //! then lowest plane). A node of at most [`SWEEP_MAX`] surfaces is split exactly instead: every
 //! position of the surfaces sorted by centroid along each axis is costed the same way
-//! ([`sweep`]). When all centroids coincide the surfaces are split in two halves of the
+//! (`sweep`). When all centroids coincide the surfaces are split in two halves of the
 //! (deterministic) current order. Below depth `max_depth/2` (reached only by pathological
 //! centroid distributions, e.g. exponentially spaced) nodes are split at the centroid median
 //! of their widest centroid axis instead, which bounds the depth by `max_depth/2 + log2(n)`.
@@ -158,7 +158,7 @@ fn split(p: &Params, items: &mut [Item], depth: usize) -> (Aabb, Option<usize>) 
     (bbox, Some(nl))
 }
 
-/// Largest node split by [`sweep`] instead of bins.
+/// Largest node split by an exact sweep (`sweep`) instead of bins.
 pub const SWEEP_MAX: usize = 64;
 
 /// The exact object split of a small node: on each axis the items sorted by centroid (ties by
