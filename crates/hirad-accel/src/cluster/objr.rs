@@ -898,7 +898,7 @@ mod crowd_tests {
         assert!(!c.crowded(&big, 0, 40.0));
         let c = Crowd::new(&inside[..7], &[1; 7]);
         assert!(c.crowded(&big, 0, 40.0));
-        // Clipped to the box: cubes half outside count half their faces' area.
+        // Clipped to the box: cubes half outside count their part inside (area 4 of 6).
         let shifted: Vec<Aabb> = (0..10)
             .map(|i| cube(Vec3::new(i as f32, 0.5, 0.0), 1.0))
             .collect();
