@@ -598,15 +598,8 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         .collect();
     let mut t = BuildTree::default();
     let mut object_root = Vec::with_capacity(subtrees.len());
-    let mut obj_prims = Prims {
-        bbox: Vec::with_capacity(subtrees.len()),
-        centroid: Vec::with_capacity(subtrees.len()),
-        area: Vec::with_capacity(subtrees.len()),
-        object: vec![0; subtrees.len()],
-        positions: Vec::new(),
-        triangles: Vec::new(),
-        material: Vec::new(),
-    };
+    let mut object_box = Vec::with_capacity(subtrees.len());
+    let mut object_area = Vec::with_capacity(subtrees.len());
     for (nodes, root, bbox, area) in subtrees {
         let base = t.nodes.len() as u32;
         for mut node in nodes {
@@ -620,9 +613,8 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         } else {
             root + base
         });
-        obj_prims.bbox.push(bbox);
-        obj_prims.centroid.push(bbox.center());
-        obj_prims.area.push(area);
+        object_box.push(bbox);
+        object_area.push(area);
     }
     // An object whose box holds more of other objects' leaf clusters than of its own (it
     // interleaves with them) is replaced by its child clusters, and so on down, before the
@@ -644,7 +636,7 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
             n.children.iter().map(|&c| leaf_sa[c as usize]).sum()
         };
     }
-    let (leaf_box, leaf_obj) = leaves_by_object(&t, &object_root, &obj_prims.bbox);
+    let (leaf_box, leaf_obj) = leaves_by_object(&t, &object_root, &object_box);
     let crowd = Crowd::new(&leaf_box, &leaf_obj);
     // Units: (object root or MAX, object, box, area).
     let units: Vec<(u32, usize, Aabb, f32)> = (0..rec.num_objects)
@@ -652,7 +644,7 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         .flat_map_iter(|o| {
             let mut out = Vec::new();
             if object_root[o] == u32::MAX {
-                out.push((u32::MAX, o, obj_prims.bbox[o], obj_prims.area[o]));
+                out.push((u32::MAX, o, object_box[o], object_area[o]));
                 return out;
             }
             let mut stack = vec![object_root[o]];
@@ -669,15 +661,10 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
         .collect();
     let object_root: Vec<u32> = units.iter().map(|u| u.0).collect();
     let unit_object: Vec<usize> = units.iter().map(|u| u.1).collect();
-    let obj_prims = Prims {
-        bbox: units.iter().map(|u| u.2).collect(),
-        centroid: units.iter().map(|u| u.2.center()).collect(),
-        area: units.iter().map(|u| u.3).collect(),
-        object: vec![0; units.len()],
-        positions: Vec::new(),
-        triangles: Vec::new(),
-        material: Vec::new(),
-    };
+    let obj_prims = box_prims(
+        units.iter().map(|u| u.2).collect(),
+        units.iter().map(|u| u.3).collect(),
+    );
     // Upper hierarchy: PROXI over one box per object.
     let all: Vec<u32> = (0..units.len() as u32).collect();
     let mut upper = BuildTree::default();
@@ -721,6 +708,20 @@ pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
     t
 }
 
+/// Builder inputs of boxes standing for surfaces of area `area` (centroids at the boxes'
+/// centres, no vertex data).
+fn box_prims(bbox: Vec<Aabb>, area: Vec<f32>) -> Prims {
+    Prims {
+        centroid: bbox.iter().map(|b| b.center()).collect(),
+        object: vec![0; bbox.len()],
+        bbox,
+        area,
+        positions: Vec::new(),
+        triangles: Vec::new(),
+        material: Vec::new(),
+    }
+}
+
 /// The leaf clusters of every object (an object of one surface: its box), with their object.
 fn leaves_by_object(
     t: &BuildTree,
@@ -757,19 +758,11 @@ struct Crowd<'a> {
 
 impl<'a> Crowd<'a> {
     fn new(boxes: &'a [Aabb], object: &'a [usize]) -> Self {
-        let prims = Prims {
-            bbox: boxes.to_vec(),
-            centroid: boxes.iter().map(|b| b.center()).collect(),
-            area: boxes.iter().map(|b| b.surface_area()).collect(),
-            object: vec![0; boxes.len()],
-            positions: Vec::new(),
-            triangles: Vec::new(),
-            material: Vec::new(),
-        };
         let tree = if boxes.is_empty() {
             BuildTree::default()
         } else {
-            super::sah::build(&prims, &ClusterConfig::default())
+            let area = boxes.iter().map(|b| b.surface_area()).collect();
+            super::sah::build(&box_prims(boxes.to_vec(), area), &ClusterConfig::default())
         };
         Crowd {
             boxes,

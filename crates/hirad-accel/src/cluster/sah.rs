@@ -11,8 +11,8 @@
 //! `area(left)·n(left) + area(right)·n(right)` over the three axes is chosen (ties: lowest axis,
 //! then lowest plane). A node of at most [`SWEEP_MAX`] surfaces is split exactly instead: every
 //! position of the surfaces sorted by centroid along each axis is costed the same way
-//! (`sweep`). When all centroids coincide the surfaces are split in two halves of the
-//! (deterministic) current order. Below depth `max_depth/2` (reached only by pathological
+//! (`sweep`). When all centroids of a larger node coincide the surfaces are split in two
+//! halves of the (deterministic) current order. Below depth `max_depth/2` (reached only by pathological
 //! centroid distributions, e.g. exponentially spaced) nodes are split at the centroid median
 //! of their widest centroid axis instead, which bounds the depth by `max_depth/2 + log2(n)`.
 
@@ -188,7 +188,10 @@ fn sweep(items: &mut [Item]) -> usize {
         }
     }
     let (_, a, i) = best.expect("a node to split has two items or more");
-    items.sort_unstable_by(key(a));
+    if a != 2 {
+        // The items are in the last axis's order.
+        items.sort_unstable_by(key(a));
+    }
     i
 }
 

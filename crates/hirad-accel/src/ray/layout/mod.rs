@@ -121,8 +121,8 @@ pub(in crate::ray) struct Layout {
 
 impl Layout {
     /// Check the references: the groups end with an empty one; from the root, every lane with
-    /// a box refers to a group in range or a run whose packets are in range, and every triangle of the scene (`num_tris`) is
-    /// stored in a run some reference reaches.
+    /// a box refers to a group in range or a run whose packets are in range, and every
+    /// triangle of the scene (`num_tris`) is stored in a run some reference reaches.
     pub(in crate::ray) fn validate(&self, num_tris: usize) -> Result<(), String> {
         let Some(root) = self.root else {
             return if num_tris == 0 {
