@@ -197,6 +197,8 @@ where
         .y_desc(&p.y_label)
         .x_labels(8)
         .y_labels(8)
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .x_label_formatter(&|v| fmt_num(*v))
         .y_label_formatter(&|v| fmt_num(*v))
         .draw()
@@ -224,6 +226,7 @@ where
     }
     chart
         .configure_series_labels()
+        .label_font(("sans-serif", 15))
         .position(legend_corner(p))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
@@ -317,6 +320,8 @@ fn draw_bars<DB: DrawingBackend>(
             p.y_label.clone()
         })
         .y_labels(10)
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
         .y_label_formatter(&|v| fmt_num(if log { 10f64.powf(*v) } else { *v }))
         .x_labels(n)
         .x_label_formatter(&|v| match v {
