@@ -75,16 +75,16 @@ fn tasks_of_the_script_compute_the_study_and_a_rerun_resubmits_only_the_failed()
     let out = tmp.path().join("s");
     hirad(&out, &["--slurm"]);
     let keys = units(&out);
-    // 2 cluster units, 2 ray units, 2 references (cornell has two cameras), 6 solves; the
-    // references first (the first submission).
-    assert_eq!(keys.len(), 12, "{keys:?}");
+    // 2 cluster units, 2 ray units, 2 references (cornell has two cameras), their 2 noise
+    // units, 6 solves; the references first (the first submission).
+    assert_eq!(keys.len(), 14, "{keys:?}");
     assert!(
         keys[..2].iter().all(|k| k.starts_with("reference/")),
         "{keys:?}"
     );
     let script = std::fs::read_to_string(out.join("slurm/study.sbatch")).unwrap();
     assert!(
-        script.contains("--array=0-1") && script.contains("--array=2-11"),
+        script.contains("--array=0-1") && script.contains("--array=2-13"),
         "{script}"
     );
     assert!(script.contains(&format!(
@@ -102,10 +102,10 @@ fn tasks_of_the_script_compute_the_study_and_a_rerun_resubmits_only_the_failed()
     }
     assert!(!run_task(&out, keys.len()), "a task past the last unit");
 
-    // The rerun with --slurm collects the eleven, names the failed one and lists only it.
+    // The rerun with --slurm collects the thirteen, names the failed one and lists only it.
     let o = hirad(&out, &["--slurm"]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("11 of 12 units done; 1 failed"), "{err}");
+    assert!(err.contains("13 of 14 units done; 1 failed"), "{err}");
     assert!(err.contains(&format!("failed: {bad}: failed:")), "{err}");
     assert!(err.contains("slurm/logs/900_"), "{err}");
     assert_eq!(units(&out), vec![bad.to_string()]);
@@ -124,7 +124,7 @@ fn tasks_of_the_script_compute_the_study_and_a_rerun_resubmits_only_the_failed()
         .unwrap();
     assert!(o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("12 of 12 units done; 0 failed"), "{err}");
+    assert!(err.contains("14 of 14 units done; 0 failed"), "{err}");
 
     let local = tmp.path().join("local");
     hirad(&local, &["--report"]);

@@ -102,6 +102,41 @@ fn study_is_resumable_and_reproducible() {
     assert!(a.join("plots/time_error.png").is_file());
     let csv = std::fs::read_to_string(a.join("sweep.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7, "{csv}");
+    // The references' own noise: a second 4-spp reference of another seed differs from the
+    // first, and the report weighs the curves' rises against it.
+    let noise: Vec<f64> = files(&a.join("noise"))
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .map(|p| {
+            let v: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+            assert_eq!(v["seed"], 2);
+            v["delta_e"].as_f64().unwrap()
+        })
+        .collect();
+    assert_eq!(noise.len(), 2, "one per camera");
+    assert!(noise.iter().all(|&n| n > 1.0), "{noise:?}");
+    let md = std::fs::read_to_string(a.join("report.md")).unwrap();
+    assert!(
+        md.contains("The references' own noise, RMS ΔE*uv of a second reference")
+            && md.contains("| strategy | rises | largest rise | rises above the noise |"),
+        "{md}"
+    );
+    // Without it, no second reference and the report says so.
+    let c = tmp.path().join("c");
+    let st = hirad(
+        &c,
+        &["--no-reference-noise", "--report", "--only", "solve/kdt"],
+    )
+    .status()
+    .unwrap();
+    assert!(st.success());
+    assert!(!c.join("noise").exists());
+    let md = std::fs::read_to_string(c.join("report.md")).unwrap();
+    assert!(
+        md.contains("The references' own noise: not measured."),
+        "{md}"
+    );
 
     // Partial run (one strategy only), then the full run: the finished units are not redone.
     let b = tmp.path().join("b");
@@ -232,10 +267,17 @@ fn unit_keys(dir: &Path) -> BTreeSet<String> {
                 .to_string_lossy()
                 .replace('\\', "/");
             let key = rel.strip_suffix(".json")?.to_string();
-            ["clusters/", "raybench/", "reference/", "solve/", "volume/"]
-                .iter()
-                .any(|k| key.starts_with(k))
-                .then_some(key)
+            [
+                "clusters/",
+                "raybench/",
+                "reference/",
+                "noise/",
+                "solve/",
+                "volume/",
+            ]
+            .iter()
+            .any(|k| key.starts_with(k))
+            .then_some(key)
         })
         .collect()
 }
@@ -339,8 +381,8 @@ fn study_killed_midway_resumes_to_the_same_result() {
     let full_dir = tmp.path().join("full");
     assert!(office(&full_dir, &["--report"]).status().unwrap().success());
     let all_units = unit_keys(&full_dir);
-    // 3 references, 1 cluster unit, 1 ray unit, 3 solves.
-    assert_eq!(all_units.len(), 8, "{all_units:?}");
+    // 3 references and their 3 noise units, 1 cluster unit, 1 ray unit, 3 solves.
+    assert_eq!(all_units.len(), 11, "{all_units:?}");
     let full_runs = run_records(&full_dir);
     assert_eq!(full_runs.len(), 1);
     assert_eq!(full_runs[0]["outcome"], "finished");

@@ -195,6 +195,25 @@ pub struct ReferenceRecord {
     pub image: String,
 }
 
+/// The references' own noise at a viewpoint: RMS ΔE*uv between the reference and a second
+/// one of another seed (same samples per pixel), the scale below which two solves' errors
+/// against the reference cannot be told apart.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NoiseRecord {
+    /// The run that made the record.
+    pub meta: RunMeta,
+    /// Viewpoint (camera name).
+    pub viewpoint: String,
+    /// Seed of the second reference.
+    pub seed: u64,
+    /// RMS ΔE*uv of the second reference against the reference.
+    pub delta_e: f64,
+    /// Render time of the second reference, seconds.
+    pub seconds: f64,
+    /// PNG of the second reference, relative to the study directory.
+    pub image: String,
+}
+
 /// One invocation of a study on a directory: what it computed, what it found done and skipped,
 /// and how it ended. A study that was interrupted and resumed has several; their wall times add
 /// up to the study's.

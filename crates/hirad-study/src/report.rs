@@ -1,8 +1,8 @@
 //! The study's report (`experiments.md` §6): Markdown and HTML with the tables and plots of
 //! §1–5 and, for each of the paper's findings, what we measured and whether it was reproduced.
 
-use super::records::{ClusterRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
-use super::score::Monotonicity;
+use super::records::{ClusterRecord, NoiseRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
+use super::score::{rises_above, Monotonicity};
 use hirad_accel::cluster::Strategy;
 use hirad_accel::ray::Boxes;
 use serde::{Deserialize, Serialize};
@@ -35,6 +35,8 @@ pub struct ReportData {
     pub rays: Vec<RayRecord>,
     /// Solves of the ε sweeps (§4).
     pub solves: Vec<SolveRecord>,
+    /// The references' own noise per viewpoint.
+    pub noise: Vec<NoiseRecord>,
     /// Volumetric-visibility rows (§5).
     pub volume: Vec<VolumeRow>,
     /// Plot and image files (relative paths) by section name.
@@ -101,6 +103,26 @@ pub fn monotonicity(solves: &[SolveRecord]) -> BTreeMap<Strategy, Monotonicity> 
         .map(|(s, v)| {
             let pts: Vec<(f64, f64)> = v.iter().map(|r| (r.eps, r.error())).collect();
             (s, Monotonicity::of(&pts))
+        })
+        .collect()
+}
+
+/// The references' own noise: the mean over viewpoints (as a solve's error is) of the RMS
+/// ΔE*uv between each reference and its second of another seed; `None` unless every viewpoint
+/// of the solves has one.
+pub fn reference_noise(d: &ReportData) -> Option<f64> {
+    let views = d.solves.first().map_or(0, |r| r.errors.len());
+    (views > 0 && d.noise.len() == views)
+        .then(|| d.noise.iter().map(|n| n.delta_e).sum::<f64>() / views as f64)
+}
+
+/// Per strategy, the steps of its error–ε curve where the error rises by more than `tol`.
+pub fn rises_above_noise(solves: &[SolveRecord], tol: f64) -> BTreeMap<Strategy, usize> {
+    curves(solves)
+        .into_iter()
+        .map(|(s, v)| {
+            let pts: Vec<(f64, f64)> = v.iter().map(|r| (r.eps, r.error())).collect();
+            (s, rises_above(&pts, tol))
         })
         .collect()
 }
@@ -226,8 +248,22 @@ pub fn findings(d: &ReportData) -> Vec<Finding> {
             } else {
                 2 * monotone > m.len()
             };
+            // Rises the references' own noise could hide.
+            let noisy = reference_noise(d)
+                .map(|n| {
+                    let above = rises_above_noise(&d.solves, n);
+                    let clean = above.values().filter(|&&c| c == 0).count();
+                    format!(
+                        "; {clean} of {} without a rise above the references' own noise (ΔE*uv {n:.2})",
+                        above.len()
+                    )
+                })
+                .unwrap_or_default();
             (
-                format!("{kind}: {monotone} of {} curves monotone ({desc})", m.len()),
+                format!(
+                    "{kind}: {monotone} of {} curves monotone ({desc}){noisy}",
+                    m.len()
+                ),
                 Some(rep),
             )
         };
@@ -406,19 +442,43 @@ pub fn markdown(d: &ReportData) -> String {
             );
         }
     }
+    let noise = reference_noise(d);
     let _ = writeln!(
         md,
         "\nMonotonicity (steps where the error rises as ε falls; Kendall τ between ε and error):\n"
     );
+    match noise {
+        Some(n) => {
+            let per_view = d
+                .noise
+                .iter()
+                .map(|r| format!("{} {:.3} (seed {})", r.viewpoint, r.delta_e, r.seed))
+                .collect::<Vec<_>>()
+                .join(", ");
+            let _ = writeln!(
+                md,
+                "The references' own noise, RMS ΔE*uv of a second reference of another seed against each: {per_view}; mean {n:.3}. A rise below it is within what the references resolve.\n"
+            );
+        }
+        None => {
+            let _ = writeln!(md, "The references' own noise: not measured.\n");
+        }
+    }
+    let above = noise.map(|n| rises_above_noise(&d.solves, n));
     let _ = writeln!(
         md,
-        "| strategy | rises | steps | Kendall τ |\n|---|---|---|---|"
+        "| strategy | rises | largest rise | rises above the noise | steps | Kendall τ |\n|---|---|---|---|---|---|"
     );
     for (s, x) in &mono {
         let _ = writeln!(
             md,
-            "| {s} | {} | {} | {} |",
+            "| {s} | {} | {:.3} | {} | {} | {} |",
             x.rises,
+            x.max_rise,
+            above
+                .as_ref()
+                .and_then(|a| a.get(s))
+                .map_or("–".into(), |c| c.to_string()),
             x.steps,
             x.kendall_tau
                 .map(|t| format!("{t:.3}"))
@@ -588,7 +648,34 @@ mod tests {
         assert_eq!(findings(&d)[3].reproduced, Some(true));
         let m = monotonicity(&d.solves);
         assert_eq!(m[&Strategy::Okdt].rises, 2);
+        assert!((m[&Strategy::Okdt].max_rise - 1.0).abs() < 1e-12);
         assert!(is_monotone(&m[&Strategy::Kdt]));
+        assert!(markdown(&d).contains("The references' own noise: not measured."));
+        // okdt's rises (1.0 and 0.5) against the references' own noise.
+        let nrec = |v: &str, delta_e| NoiseRecord {
+            meta: RunMeta::default(),
+            viewpoint: v.into(),
+            seed: 2,
+            delta_e,
+            seconds: 1.0,
+            image: String::new(),
+        };
+        d.noise = vec![nrec("default", 0.75)];
+        assert_eq!(reference_noise(&d), Some(0.75));
+        assert_eq!(rises_above_noise(&d.solves, 0.75)[&Strategy::Okdt], 1);
+        assert!(findings(&d)[3]
+            .ours
+            .ends_with("; 1 of 2 without a rise above the references' own noise (ΔE*uv 0.75)"));
+        let md = markdown(&d);
+        assert!(md.contains("| okdt | 2 | 1.000 | 1 | 3 |"), "{md}");
+        assert!(md.contains("default 0.750 (seed 2); mean 0.750"), "{md}");
+        d.noise = vec![nrec("default", 1.5)];
+        assert!(findings(&d)[3]
+            .ours
+            .contains("; 2 of 2 without a rise above"));
+        // A viewpoint without its noise: the mean over viewpoints is not known.
+        d.noise.clear();
+        assert_eq!(reference_noise(&d), None);
     }
 
     fn crec(s: Strategy, branching: f64, build_ms: f64) -> ClusterRecord {

@@ -6,6 +6,10 @@
 //!   the error goes up (0 for a perfectly monotone curve);
 //! - [`kendall_tau`]: Kendall's τ-b rank correlation between ε and error (+1 when the error
 //!   always decreases with ε, −1 when it always increases, ties handled by the τ-b correction).
+//!
+//! A rise can be smaller than anything the error can resolve (two solves that differ in a few
+//! links); [`Monotonicity::max_rise`] and [`rises_above`] give its size, to be set against the
+//! references' own noise (the study's `noise/<viewpoint>` units).
 
 use serde::{Deserialize, Serialize};
 
@@ -16,6 +20,9 @@ pub struct Monotonicity {
     pub rises: usize,
     /// Steps in all (points − 1).
     pub steps: usize,
+    /// Largest rise of the error over one step (0 when it never rises).
+    #[serde(default)]
+    pub max_rise: f64,
     /// Kendall's τ-b between ε and error; `None` with fewer than two distinct values.
     pub kendall_tau: Option<f64>,
 }
@@ -25,17 +32,30 @@ impl Monotonicity {
     pub fn of(points: &[(f64, f64)]) -> Monotonicity {
         Monotonicity {
             rises: rises(points),
+            max_rise: steps_by_eps(points).map(|d| d.max(0.0)).fold(0.0, f64::max),
             steps: points.len().saturating_sub(1),
             kendall_tau: kendall_tau(points),
         }
     }
 }
 
-/// Number of steps, with points sorted by decreasing ε, where the error goes up.
-pub fn rises(points: &[(f64, f64)]) -> usize {
+/// Change of the error over each step, with the points sorted by decreasing ε (positive: a
+/// rise).
+fn steps_by_eps(points: &[(f64, f64)]) -> impl Iterator<Item = f64> {
     let mut p: Vec<(f64, f64)> = points.to_vec();
     p.sort_by(|a, b| b.0.total_cmp(&a.0));
-    p.windows(2).filter(|w| w[1].1 > w[0].1).count()
+    (1..p.len()).map(move |i| p[i].1 - p[i - 1].1)
+}
+
+/// Number of steps, with points sorted by decreasing ε, where the error goes up.
+pub fn rises(points: &[(f64, f64)]) -> usize {
+    rises_above(points, 0.0)
+}
+
+/// Number of steps, with points sorted by decreasing ε, where the error goes up by more than
+/// `tol`.
+pub fn rises_above(points: &[(f64, f64)], tol: f64) -> usize {
+    steps_by_eps(points).filter(|&d| d > tol).count()
 }
 
 /// Kendall's τ-b between the two coordinates (O(n²), curves have tens of points).
@@ -97,6 +117,30 @@ mod tests {
         assert!((kendall_tau(&pts).unwrap() - 4.0 / 6.0).abs() < 1e-12);
         // Sorted by decreasing ε the errors are 4, 2, 3, 1: one rise (2 → 3).
         assert_eq!(rises(&pts), 1);
+        let m = Monotonicity::of(&pts);
+        assert!((m.max_rise - 1.0).abs() < 1e-12);
+        assert_eq!(rises_above(&pts, 0.5), 1);
+        assert_eq!(rises_above(&pts, 1.0), 0);
+    }
+
+    #[test]
+    fn rise_sizes() {
+        // Sorted by decreasing ε: 10, 10.25, 6, 7.5, 7.5 → rises of 0.25 and 1.5.
+        let pts = [
+            (0.5, 7.5),
+            (1.0, 10.0),
+            (0.25, 7.5),
+            (0.75, 10.25),
+            (0.4, 6.0),
+        ];
+        let m = Monotonicity::of(&pts);
+        assert_eq!(m.rises, 2);
+        assert!((m.max_rise - 1.5).abs() < 1e-12);
+        assert_eq!(rises_above(&pts, 0.2), 2);
+        assert_eq!(rises_above(&pts, 0.3), 1);
+        assert_eq!(rises_above(&pts, 1.5), 0);
+        // A monotone curve rises by nothing.
+        assert_eq!(Monotonicity::of(&[(1.0, 2.0), (0.5, 1.0)]).max_rise, 0.0);
     }
 
     #[test]

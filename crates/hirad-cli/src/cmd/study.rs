@@ -56,6 +56,10 @@ pub struct Args {
     /// Path-tracer samples per pixel of the reference images.
     #[arg(long, default_value_t = 256)]
     pub spp: u32,
+    /// Skip the second reference per viewpoint (another seed) that measures the references'
+    /// own noise, against which the report weighs the rises of the error curves.
+    #[arg(long)]
+    pub no_reference_noise: bool,
     /// Pairs of the ray-casting test (0 skips it).
     #[arg(long, default_value_t = 100_000)]
     pub pairs: usize,
@@ -154,6 +158,7 @@ fn config(a: &Args, scene: &str) -> anyhow::Result<StudyConfig> {
         viewpoints: a.viewpoints.clone(),
         size: parse_size(&a.size)?,
         reference_spp: a.spp,
+        reference_noise: !a.no_reference_noise,
         ray_pairs: a.pairs,
         ray_boxes: Boxes::parse(&a.ray_boxes)?,
         seed: a.seed,

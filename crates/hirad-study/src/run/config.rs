@@ -45,6 +45,9 @@ pub struct StudyConfig {
     pub supersample: u32,
     /// Path-tracer samples per pixel of the references.
     pub reference_spp: u32,
+    /// Also render each reference again with another seed, to measure the references' own
+    /// noise (the scale of error differences the study can resolve).
+    pub reference_noise: bool,
     /// Ray-casting test pairs and seed.
     pub ray_pairs: usize,
     /// Boxes the ray-casting test traverses (`cluster`: the strategies' own, as in the paper).
@@ -81,6 +84,7 @@ impl Default for StudyConfig {
             size: (320, 240),
             supersample: 2,
             reference_spp: 256,
+            reference_noise: true,
             ray_pairs: 100_000,
             ray_boxes: Boxes::Tight,
             seed: 1,

@@ -20,6 +20,7 @@ pub fn merge(into: &std::path::Path, dirs: &[PathBuf]) -> Result<usize> {
             "clusters",
             "raybench",
             "reference",
+            "noise",
             "solve",
             "volume",
             "runs",

@@ -2,8 +2,9 @@
 //! that are not on disk yet, and writes tables, plots and the report.
 //!
 //! Units of work and their keys in the [`Store`] ([`Job::key`]): `clusters/<strategy>` (§1),
-//! `raybench/<strategy>` (§2), `reference/<viewpoint>` (§3), `solve/<strategy>/<eps>` (§4) and
-//! `volume/<strategy>` (§5). Every unit is written atomically when it completes, so a study that
+//! `raybench/<strategy>` (§2), `reference/<viewpoint>` (§3), `noise/<viewpoint>` (the
+//! references' own noise: a second reference of another seed against the first),
+//! `solve/<strategy>/<eps>` (§4) and `volume/<strategy>` (§5). Every unit is written atomically when it completes, so a study that
 //! is stopped and started again skips finished units. [`plan()`] lists the units so that
 //! `hirad study --jobs` can print one command per unit; [`merge()`] merges output directories;
 //! [`slurm`] runs the units as a Slurm job array.

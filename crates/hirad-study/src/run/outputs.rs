@@ -3,7 +3,7 @@
 
 use super::StudyConfig;
 use crate::plot::{strategy_color, BarPlot, LinePlot, Series};
-use crate::records::{ClusterRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
+use crate::records::{ClusterRecord, NoiseRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
 use crate::report::{self, ReportData, VolumeRow};
 use crate::store::Store;
 use hirad_accel::cluster::Strategy;
@@ -36,6 +36,11 @@ pub fn collect(out: &std::path::Path) -> Result<ReportData> {
     for k in store.keys("solve") {
         if let Some(r) = store.get::<SolveRecord>(&k) {
             d.solves.push(r);
+        }
+    }
+    for k in store.keys("noise") {
+        if let Some(r) = store.get::<NoiseRecord>(&k) {
+            d.noise.push(r);
         }
     }
     for k in store.keys("volume") {
@@ -214,7 +219,8 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
         &p,
         &serde_json::json!({
             "meta": d.meta, "clusters": d.clusters, "raybench": d.rays, "solves": d.solves,
-            "volume": d.volume, "findings": report::findings(d),
+            "volume": d.volume, "noise": d.noise, "reference_noise": report::reference_noise(d),
+            "findings": report::findings(d),
             "wall_s": d.total_wall_s(), "runs": d.runs,
             "monotonicity": report::monotonicity(&d.solves).into_iter().map(|(s, m)| (s.to_string(), m)).collect::<std::collections::BTreeMap<_, _>>(),
         }),

@@ -14,6 +14,9 @@ pub enum Job {
     Raybench(Strategy),
     /// The reference image of a viewpoint (§3).
     Reference(String),
+    /// The references' own noise at a viewpoint: a second reference of another seed against
+    /// the first.
+    Noise(String),
     /// One solve of the sweep: strategy and relative ε (§4).
     Solve(Strategy, f64),
     /// Volumetric against exact visibility for a strategy (§5).
@@ -32,6 +35,7 @@ impl Job {
             Job::Clusters(s) => format!("clusters/{s}"),
             Job::Raybench(s) => format!("raybench/{s}"),
             Job::Reference(v) => format!("reference/{v}"),
+            Job::Noise(v) => format!("noise/{v}"),
             Job::Solve(s, e) => format!("solve/{s}/{}", eps_key(*e)),
             Job::Volume(s) => format!("volume/{s}"),
         }
@@ -50,8 +54,14 @@ pub fn plan(scene: &Scene, cfg: &StudyConfig, eps: &[f64]) -> Result<Vec<Job>> {
         }
     }
     if !eps.is_empty() {
-        for (name, _) in viewpoints(scene, cfg)? {
-            jobs.push(Job::Reference(name));
+        let views = viewpoints(scene, cfg)?;
+        for (name, _) in &views {
+            jobs.push(Job::Reference(name.clone()));
+        }
+        if cfg.reference_noise {
+            for (name, _) in views {
+                jobs.push(Job::Noise(name));
+            }
         }
         for &s in &cfg.strategies {
             for &e in eps {

@@ -3,7 +3,7 @@
 
 use super::plan::{eps_key, Job};
 use super::Study;
-use crate::records::{ClusterRecord, RayRecord, ReferenceRecord, SolveRecord};
+use crate::records::{ClusterRecord, NoiseRecord, RayRecord, ReferenceRecord, SolveRecord};
 use crate::report::VolumeRow;
 use hirad_accel::cluster::{stats::ClusterStats, ClusterTree, Strategy};
 use hirad_accel::ray::{sample::sample_segments, RayCaster};
@@ -70,6 +70,10 @@ impl Study<'_> {
             }
             Job::Reference(v) => {
                 let r = self.reference(v)?;
+                self.store.put(&key, &r)
+            }
+            Job::Noise(v) => {
+                let r = self.noise(v)?;
                 self.store.put(&key, &r)
             }
             Job::Solve(s, e) => {
@@ -147,20 +151,36 @@ impl Study<'_> {
         self.cfg.out.join("reference").join(format!("{name}.exr"))
     }
 
-    fn reference(&self, name: &str) -> Result<ReferenceRecord> {
+    /// Path-traced image of viewpoint `name` with the study's samples per pixel and `seed`,
+    /// and its render time in seconds.
+    fn path_trace(&self, name: &str, seed: u64) -> Result<(Image, f64)> {
         let view = self.view(name)?;
         let tree = self.tree(Strategy::Sah);
         let caster = RayCaster::new(&self.scene, &tree);
         let t = Instant::now();
         let opts = render::pathtrace::ReferenceOptions {
             spp: self.cfg.reference_spp,
-            seed: self.cfg.seed,
+            seed,
             two_sided: self.cfg.solver.two_sided,
             ..Default::default()
         };
         let (img, _) =
             render::pathtrace::render_reference(&self.scene, &caster, view, &opts, self.progress)?;
-        let seconds = t.elapsed().as_secs_f64();
+        Ok((img, t.elapsed().as_secs_f64()))
+    }
+
+    /// The reference of viewpoint `name`, made first if a unit run alone (`--jobs`,
+    /// `--only`) needs it; the path tracer is deterministic, so every machine makes the same.
+    fn reference_image(&self, name: &str) -> Result<Image> {
+        let job = Job::Reference(name.to_string());
+        if !self.store.has(&job.key()) {
+            self.run_job(&job)?;
+        }
+        Image::read(&self.reference_path(name))
+    }
+
+    fn reference(&self, name: &str) -> Result<ReferenceRecord> {
+        let (img, seconds) = self.path_trace(name, self.cfg.seed)?;
         let path = self.reference_path(name);
         img.write_exr(&path)?;
         img.write_png(&path.with_extension("png"), auto_exposure(&img))?;
@@ -170,6 +190,23 @@ impl Study<'_> {
             method: format!("path tracer, {} spp", self.cfg.reference_spp),
             seconds,
             image: format!("reference/{name}.png"),
+        })
+    }
+
+    fn noise(&self, name: &str) -> Result<NoiseRecord> {
+        let seed = self.cfg.seed.wrapping_add(1);
+        let (img, seconds) = self.path_trace(name, seed)?;
+        let reference = self.reference_image(name)?;
+        let delta_e = hirad_render::metrics::compare(&img, &reference)?.rms_delta_e;
+        let rel = format!("noise/{name}.png");
+        img.write_png(&self.cfg.out.join(&rel), auto_exposure(&img))?;
+        Ok(NoiseRecord {
+            meta: self.meta.clone(),
+            viewpoint: name.to_string(),
+            seed,
+            delta_e,
+            seconds,
+            image: rel,
         })
     }
 
@@ -213,13 +250,7 @@ impl Study<'_> {
         let imgs = self.render_views(&sol, &dir)?;
         let mut errors = Vec::new();
         for ((name, _), (_, img)) in self.views.iter().zip(&imgs) {
-            // A job run alone (`--jobs`, `--only`) makes the reference it needs; the path
-            // tracer is deterministic, so every machine makes the same one.
-            let job = Job::Reference(name.clone());
-            if !self.store.has(&job.key()) {
-                self.run_job(&job)?;
-            }
-            let reference = Image::read(&self.reference_path(name))?;
+            let reference = self.reference_image(name)?;
             errors.push(hirad_render::metrics::compare(img, &reference)?.rms_delta_e);
         }
         let st = &sol.stats;
