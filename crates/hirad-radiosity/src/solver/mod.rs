@@ -7,8 +7,13 @@
 //! the thread count.
 //!
 //! Iterations: the links are refined on the first iteration, again whenever the total power
-//! has moved by more than `REFINE_DRIFT` since, and once more when the change of total
-//! power falls below `tol_converge`; the other iterations only gather and push-pull. Nothing
+//! has moved by more than `REFINE_DRIFT` since, and once more when the change of total power
+//! per iteration falls below `REFINE_TOL` (or `tol_converge`, if larger) while the power has
+//! moved by more than that since the last refinement or that refinement added more than
+//! `SETTLED_LINKS` of the links (their light changes the radiosity the oracle weighs where they
+//! land); the other iterations only gather and push-pull. The solve stops when the change falls
+//! below `tol_converge`, the last refinement added at most `SETTLED_LINKS` of the links and
+//! was made against a total power within `REFINE_TOL` of the converged one. Nothing
 //! caps a leaf's gain `ρ · Σ K` (those above 1 are counted); a solve whose total power passes
 //! `(Φ_emitted + Φ_direct) / (1 − ρ_max)`, the most any closed scene holds, stops with an error.
 
@@ -38,6 +43,16 @@ use std::time::Instant;
 /// than this fraction since the links were last refined, and always once more at
 /// convergence; in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
+
+/// A solution whose total power changes by less than this fraction per iteration is close
+/// enough to its fixed point for the oracle (which weighs `B·F̃` against ε; a link changes
+/// its decision only within this fraction of the threshold): the links are checked against
+/// it, and are not checked again at convergence unless the power has moved by more since.
+const REFINE_TOL: f64 = 1e-3;
+
+/// A refinement that adds at most this fraction of the links leaves them settled: no further
+/// check is needed once the radiosity has converged over them.
+const SETTLED_LINKS: f64 = 0.01;
 
 /// [`Solver::straddle`]: the element's links with disagreeing rays carry more than ε.
 const STRADDLES: u8 = 1;
@@ -376,6 +391,8 @@ impl<'a> Solver<'a> {
         // Power of the radiosity the links were last refined against.
         let mut p_refined = p0;
         let mut need_refine = true;
+        // The last refinement added at most `SETTLED_LINKS` of the links.
+        let mut settled = false;
         for it in 1..=self.cfg.max_iters {
             if cancel.load(Ordering::Relaxed) {
                 progress.finish();
@@ -384,8 +401,11 @@ impl<'a> Solver<'a> {
             let refined = need_refine;
             if refined {
                 let t = Instant::now();
+                let before = self.set.len();
                 self.refine(it == 1, cancel)?;
                 self.stats.time.refine += t.elapsed().as_secs_f64();
+                let added = self.set.len().saturating_sub(before);
+                settled = it > 1 && added as f64 <= SETTLED_LINKS * self.set.len() as f64;
                 self.stats.refinements += 1;
                 p_refined = prev;
             }
@@ -432,16 +452,16 @@ impl<'a> Solver<'a> {
                 self.entries.len(),
                 self.strata.len()
             );
-            if it > 1 && rel < self.cfg.tol_converge {
-                if refined {
-                    self.stats.converged = true;
-                    break;
-                }
-                // Check the links against the converged radiosity before stopping.
-                need_refine = true;
-            } else {
-                need_refine = (p - p_refined).abs() > REFINE_DRIFT * p.abs();
+            // Power moved since the links were last refined, relative.
+            let moved = (p - p_refined).abs() / p.abs().max(1e-300);
+            let near = REFINE_TOL.max(self.cfg.tol_converge);
+            if it > 1 && rel < self.cfg.tol_converge && settled && (refined || moved <= near) {
+                self.stats.converged = true;
+                break;
             }
+            // Check the links against the (nearly) converged radiosity.
+            need_refine =
+                moved > REFINE_DRIFT || (it > 1 && rel < near && (moved > near || !settled));
         }
         progress.finish();
         if !self.stats.converged {
