@@ -96,14 +96,19 @@ pub fn curves(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<&SolveRecord>> {
     m
 }
 
-/// Monotonicity of each strategy's error–ε curve.
-pub fn monotonicity(solves: &[SolveRecord]) -> BTreeMap<Strategy, Monotonicity> {
+/// Each strategy's error–ε curve as `(ε, error)` points, largest ε first.
+fn error_eps(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
     curves(solves)
         .into_iter()
-        .map(|(s, v)| {
-            let pts: Vec<(f64, f64)> = v.iter().map(|r| (r.eps, r.error())).collect();
-            (s, Monotonicity::of(&pts))
-        })
+        .map(|(s, v)| (s, v.iter().map(|r| (r.eps, r.error())).collect()))
+        .collect()
+}
+
+/// Monotonicity of each strategy's error–ε curve.
+pub fn monotonicity(solves: &[SolveRecord]) -> BTreeMap<Strategy, Monotonicity> {
+    error_eps(solves)
+        .into_iter()
+        .map(|(s, pts)| (s, Monotonicity::of(&pts)))
         .collect()
 }
 
@@ -118,12 +123,9 @@ pub fn reference_noise(d: &ReportData) -> Option<f64> {
 
 /// Per strategy, the steps of its error–ε curve where the error rises by more than `tol`.
 pub fn rises_above_noise(solves: &[SolveRecord], tol: f64) -> BTreeMap<Strategy, usize> {
-    curves(solves)
+    error_eps(solves)
         .into_iter()
-        .map(|(s, v)| {
-            let pts: Vec<(f64, f64)> = v.iter().map(|r| (r.eps, r.error())).collect();
-            (s, rises_above(&pts, tol))
-        })
+        .map(|(s, pts)| (s, rises_above(&pts, tol)))
         .collect()
 }
 

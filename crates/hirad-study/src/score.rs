@@ -32,7 +32,7 @@ impl Monotonicity {
     pub fn of(points: &[(f64, f64)]) -> Monotonicity {
         Monotonicity {
             rises: rises(points),
-            max_rise: steps_by_eps(points).map(|d| d.max(0.0)).fold(0.0, f64::max),
+            max_rise: steps_by_eps(points).fold(0.0, f64::max),
             steps: points.len().saturating_sub(1),
             kendall_tau: kendall_tau(points),
         }

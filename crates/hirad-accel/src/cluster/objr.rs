@@ -777,7 +777,7 @@ impl<'a> Crowd<'a> {
         if self.tree.nodes.is_empty() {
             return false;
         }
-        let overlaps = |a: &Aabb, b: &Aabb| a.min.cmple(b.max).all() && b.min.cmple(a.max).all();
+        let overlaps = |a: &Aabb, b: &Aabb| !a.intersection(b).is_empty();
         let mut sum = 0f64;
         let mut stack = vec![self.tree.root];
         while let Some(n) = stack.pop() {
@@ -789,7 +789,7 @@ impl<'a> Crowd<'a> {
             for &j in &node.surfaces {
                 let l = &self.boxes[j as usize];
                 if self.object[j as usize] != o && overlaps(l, b) {
-                    sum += Aabb::new(b.min.max(l.min), b.max.min(l.max)).surface_area() as f64;
+                    sum += b.intersection(l).surface_area() as f64;
                     if sum > own {
                         return true;
                     }
@@ -854,11 +854,6 @@ mod tests {
         let r = reconstruct(&Prims::from_triangles(&t));
         assert_eq!((r.num_objects, r.num_patches), (1, 3));
     }
-}
-
-#[cfg(test)]
-mod crowd_tests {
-    use super::*;
 
     fn cube(lo: Vec3, s: f32) -> Aabb {
         Aabb::new(lo, lo + Vec3::splat(s))

@@ -40,8 +40,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Refinement is repeated (before the next gather) when the total power has moved by more
-/// than this fraction since the links were last refined, and always once more at
-/// convergence; in between, iterations only gather and push-pull over the same links.
+/// than this fraction since the links were last refined (near convergence: [`REFINE_TOL`]);
+/// in between, iterations only gather and push-pull over the same links.
 const REFINE_DRIFT: f64 = 0.05;
 
 /// A solution whose total power changes by less than this fraction per iteration is close
@@ -391,6 +391,7 @@ impl<'a> Solver<'a> {
         // Power of the radiosity the links were last refined against.
         let mut p_refined = p0;
         let mut need_refine = true;
+        let near = REFINE_TOL.max(self.cfg.tol_converge);
         // The last refinement added at most `SETTLED_LINKS` of the links.
         let mut settled = false;
         for it in 1..=self.cfg.max_iters {
@@ -454,7 +455,6 @@ impl<'a> Solver<'a> {
             );
             // Power moved since the links were last refined, relative.
             let moved = (p - p_refined).abs() / p.abs().max(1e-300);
-            let near = REFINE_TOL.max(self.cfg.tol_converge);
             if it > 1 && rel < self.cfg.tol_converge && settled && (refined || moved <= near) {
                 self.stats.converged = true;
                 break;
