@@ -207,7 +207,7 @@ fn study_through_the_local_slurm_equals_the_in_process_study() {
             "-o",
             "JobID%14,JobName%14,Partition,State,Elapsed,ExitCode",
         ]));
-        if acct.matches("COMPLETED").count() >= 12 || acct.contains("disabled") {
+        if acct.matches("COMPLETED").count() >= 14 || acct.contains("disabled") {
             break;
         }
         std::thread::sleep(Duration::from_millis(250));
@@ -222,9 +222,9 @@ fn study_through_the_local_slurm_equals_the_in_process_study() {
     let err = String::from_utf8_lossy(&o.stderr);
     println!("--- hirad study merge\n{err}");
     assert!(o.status.success());
-    assert!(err.contains("12 of 12 units done; 0 failed"), "{err}");
+    assert!(err.contains("14 of 14 units done; 0 failed"), "{err}");
     let logs = std::fs::read_dir(out.join("slurm/logs")).unwrap().count();
-    assert_eq!(logs, 12, "one log per task");
+    assert_eq!(logs, 14, "one log per task");
 
     let local = tmp.path().join("local");
     let t1 = Instant::now();
