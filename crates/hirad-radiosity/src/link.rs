@@ -23,7 +23,8 @@ pub struct Link {
     /// ([`Deposit`]), pooled over the receiver's links to shape its light.
     pub deposit: Deposit,
     /// Where below a surface source the transfer leaves from ([`Deposit`]): the mean
-    /// radiosity there instead of the source's; none: the source's.
+    /// radiosity there instead of the source's (the source's radiosity where the receiver
+    /// sees it and its kernel is strong); none: the source's.
     pub draw: Deposit,
     /// A directional cluster receiver whose rays disagree: the start of its run in
     /// [`LinkSet::open_members`] (a header `(count, 0)`, then `(surface, g)`: the surfaces
@@ -36,9 +37,9 @@ pub struct Link {
 /// receiver: up to four of its sample points and whether their shadow rays were open;
 /// pooled over all the receiver's links they show which parts of it see the room (a wall
 /// behind furniture pressed close to it), which no single weak link's oracle would refine.
-/// On a surface source whose rays disagree: the ends of open rays, where the transfer
-/// leaves from (the mean radiosity there, not the source's mean over parts the receiver
-/// does not see).
+/// On a surface source: ends of open rays drawn in proportion to their samples' kernels,
+/// where the transfer leaves from (the mean radiosity there, not the source's mean over
+/// parts the receiver does not see or sees only at a grazing distance).
 ///
 /// Code: bits 0..2 the depth (levels below the receiver; 0: no deposit), bits 2..4 the
 /// number of points minus one, bits 4..8 the open mask (bit i: point i's ray was open),

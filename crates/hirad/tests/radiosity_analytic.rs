@@ -337,3 +337,98 @@ fn memory_budget_below_the_scene_is_an_error() {
     let msg = e.to_string();
     assert!(msg.contains("--max-memory 1 MB is below the"), "{msg}");
 }
+
+#[test]
+fn a_small_receiver_takes_the_source_radiosity_where_it_sees_it() {
+    // A lamp (E = 1, 0.5 m square at z = 0.5, facing down) lights a 4 m grey floor (ρ = 0.5)
+    // in a bright spot; a small black receiver hangs beside the spot, facing down (2 cm
+    // square at z = 0.3 over x = 0.9). The floor is two triangles of 8 m², subdivided under
+    // the lamp: a link from a coarse floor element that carried the element's mean radiosity
+    // would give the receiver the floor's average instead of the bright spot below it. Ground
+    // truth by quadrature: the floor's radiosity is ρ times the lamp's unoccluded form factor
+    // (the receiver's own shadow is 4 cm² of floor), the receiver's irradiance the floor's
+    // radiosity over the point-to-point kernel, at 6 × 6 receiver points and 1 cm cells.
+    use hirad::radiosity::formfactor::point_to_polygon;
+    use std::f64::consts::PI;
+    let floor = rect(
+        Vec3::new(-2.0, -2.0, 0.0),
+        Vec3::X * 4.0,
+        Vec3::Y * 4.0,
+        0,
+        0,
+    );
+    let lamp = rect(
+        Vec3::new(0.25, 0.25, 0.5),
+        Vec3::Y * 0.5,
+        Vec3::X * 0.5,
+        1,
+        1,
+    );
+    let (x0, y0, z0, side) = (0.9f64, 0.49f64, 0.3f64, 0.02f64);
+    let recv = rect(
+        Vec3::new(x0 as f32, y0 as f32, z0 as f32),
+        Vec3::Y * side as f32,
+        Vec3::X * side as f32,
+        2,
+        2,
+    );
+    let scene = quads_scene(
+        &[floor, lamp, recv],
+        vec![
+            Material::diffuse("grey", Vec3::splat(0.5)),
+            emitter(),
+            Material::diffuse("black", Vec3::ZERO),
+        ],
+    );
+    let lamp_poly: Vec<glam::DVec3> = [(0.25, 0.25), (0.25, 0.75), (0.75, 0.75), (0.75, 0.25)]
+        .iter()
+        .map(|&(x, y)| glam::DVec3::new(x, y, 0.5))
+        .collect();
+    let h = 0.01;
+    let cells_per_side = (4.0 / h) as usize;
+    let cells: Vec<(f64, f64, f64)> = (0..cells_per_side * cells_per_side)
+        .map(|k| {
+            let x = -2.0 + (k / cells_per_side) as f64 * h + h / 2.0;
+            let y = -2.0 + (k % cells_per_side) as f64 * h + h / 2.0;
+            let f = point_to_polygon(
+                glam::DVec3::new(x, y, 0.0),
+                glam::DVec3::Z,
+                &lamp_poly,
+                -glam::DVec3::Z,
+            );
+            (x, y, 0.5 * f)
+        })
+        .collect();
+    let m = 6;
+    let mut exact = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let p = glam::DVec3::new(
+                x0 + (i as f64 + 0.5) / m as f64 * side,
+                y0 + (j as f64 + 0.5) / m as f64 * side,
+                z0,
+            );
+            exact += cells
+                .iter()
+                .map(|&(x, y, b)| {
+                    let r2 = glam::DVec3::new(x, y, 0.0).distance_squared(p);
+                    b * z0 * z0 / (PI * r2 * r2) * h * h
+                })
+                .sum::<f64>();
+        }
+    }
+    exact /= (m * m) as f64;
+    let tree = tree_by_object(&scene);
+    let cfg = SolverConfig {
+        shadow_rays: 16,
+        ..SolverConfig::default()
+    };
+    let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
+    let got = group_irradiance(&sol, &scene, 2);
+    println!(
+        "receiver beside the bright spot: H = {got:.5}, quadrature {exact:.5}, ratio {:.4}; {} links",
+        got / exact,
+        sol.stats.links
+    );
+    assert!((got / exact - 1.0).abs() < 0.02, "H = {got}, exact {exact}");
+}

@@ -11,7 +11,9 @@
 
 use super::analytic::{point_to_disk, point_to_polygon, point_to_polygon_many};
 use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
-use super::sampling::{sample_triangle_above, sample_triangle_inset, stratified_2d};
+use super::sampling::{
+    sample_triangle_above, sample_triangle_above_area, sample_triangle_inset, stratified_2d,
+};
 use crate::cluster_model::{self, ClusterOrient};
 use crate::config::{ClusterEmission, Reception};
 use crate::element::{quad_path, Elements, Kind};
@@ -50,7 +52,9 @@ pub struct KernelEval {
     pub members: Vec<(u32, f32)>,
     /// Surface receiver: sample points and whether their rays were open ([`Deposit`]).
     pub deposit: Deposit,
-    /// Surface source whose rays disagree: where the transfer leaves from ([`Deposit`]).
+    /// Surface source: where the transfer leaves from ([`Deposit`]), up to four open samples
+    /// drawn in proportion to their kernels (within a diameter of the source; evenly
+    /// beyond).
     pub draw: Deposit,
     /// Directional cluster receiver whose rays disagree: the strata around the surfaces whose
     /// samples saw the source (a surface, or a cluster below the receiver), each with its
@@ -66,14 +70,16 @@ pub struct KernelEval {
 
 /// What a link records of its samples ([`Deposit`]): on a surface receiver (vertices `vr`),
 /// up to [`Deposit::POINTS`] of its counted sample points `recv` (point, ray open), drawn
-/// evenly among them; on a surface source (`vs`), when some rays were open and some not,
-/// up to as many of the open pairs `seen` (receiver point, source point), where the
-/// transfer leaves from.
+/// evenly among them; on a surface source (`vs`), up to as many of the open pairs `seen`
+/// (receiver point, source point, weight), drawn in proportion to their weights (each pair's
+/// kernel over the density it was drawn with, or equal): where the transfer leaves from, so
+/// that it takes the source's radiosity where the receiver sees it and its kernel is strong,
+/// not the source's mean.
 pub(super) fn deposit_at(
     vr: Option<&[Vec3; 3]>,
     vs: Option<&[Vec3; 3]>,
     recv: &mut [(Vec3, bool)],
-    seen: &mut [(Vec3, Vec3)],
+    seen: &[(Vec3, Vec3, f64)],
     rng: &mut SplitMix64,
 ) -> (Deposit, Deposit) {
     let deposit = match vr {
@@ -88,19 +94,50 @@ pub(super) fn deposit_at(
         }
         _ => Deposit::default(),
     };
-    let mixed = recv.iter().any(|s| s.1) && recv.iter().any(|s| !s.1);
     let draw = match vs {
-        Some(v) if mixed && !seen.is_empty() => {
-            let c = draw_first(seen, rng);
-            let paths: SmallVec<[u32; Deposit::POINTS]> = seen[..c]
+        Some(v) if !seen.is_empty() => {
+            let paths: SmallVec<[u32; Deposit::POINTS]> = draw_weighted(seen, rng)
                 .iter()
-                .map(|s| quad_path(v, s.1, Deposit::LEVELS))
+                .map(|&i| quad_path(v, seen[i].1, Deposit::LEVELS))
                 .collect();
             Deposit::new(&paths)
         }
         _ => Deposit::default(),
     };
     (deposit, draw)
+}
+
+/// Up to [`Deposit::POINTS`] indices of `items` drawn in proportion to their weights
+/// (systematically: one random offset, equal steps through the cumulative weight), evenly when
+/// no weight is positive.
+pub(super) fn draw_weighted(
+    items: &[(Vec3, Vec3, f64)],
+    rng: &mut SplitMix64,
+) -> SmallVec<[usize; Deposit::POINTS]> {
+    let c = items.len().min(Deposit::POINTS);
+    let total: f64 = items.iter().map(|s| s.2).sum();
+    let mut out = SmallVec::new();
+    let u = rng.next_f64();
+    if total.is_nan() || total <= 0.0 {
+        let step = items.len() as f64 / c as f64;
+        out.extend((0..c).map(|k| (((k as f64 + u) * step) as usize).min(items.len() - 1)));
+        return out;
+    }
+    let step = total / c as f64;
+    let mut target = u * step;
+    let mut acc = 0.0;
+    for (i, s) in items.iter().enumerate() {
+        acc += s.2;
+        while out.len() < c && target < acc {
+            out.push(i);
+            target += step;
+        }
+    }
+    // Rounding may leave the last step past the sum.
+    while out.len() < c {
+        out.push(items.len() - 1);
+    }
+    out
 }
 
 /// Moves up to [`Deposit::POINTS`] items drawn evenly from `items` to its front; their number.
@@ -112,6 +149,26 @@ fn draw_first<T>(items: &mut [T], rng: &mut SplitMix64) -> usize {
     }
     c
 }
+
+/// `max(0, cos θx) max(0, cos θy) / (r² + R²)` between points `x` (normal `nx`, none:
+/// facing `y`) and `y` (normal `ny`): the kernel per unit area, but for the factor `1/π`, of
+/// a disk of radius `R` (`r2_cell` = R²) around `y` facing `x` (the coaxial point-to-disk form
+/// factor over the disk's area). A link's draw reads the radiosity of cells of the source, and
+/// near a cell the kernel of its points is that of the cell, not the point's `1/r²`.
+pub(super) fn point_pair_kernel(x: Vec3, nx: Option<Vec3>, y: Vec3, ny: Vec3, r2_cell: f64) -> f64 {
+    let d = (y - x).as_dvec3();
+    let r2 = d.length_squared();
+    if r2.is_nan() || r2 <= 0.0 {
+        return 0.0;
+    }
+    let cx = nx.map_or(r2.sqrt(), |n| n.as_dvec3().dot(d).max(0.0));
+    let cy = (-ny.as_dvec3().dot(d)).max(0.0);
+    cx * cy / (r2 * (r2 + r2_cell))
+}
+
+/// Share of a source's area in one cell of the deepest level a draw records
+/// ([`Deposit::LEVELS`] of midpoint subdivision).
+pub(super) const CELL_SHARE: f64 = 1.0 / (1 << (2 * Deposit::LEVELS)) as f64;
 
 /// Everything needed to evaluate link kernels.
 #[derive(Clone, Copy)]
@@ -362,6 +419,22 @@ impl KernelCtx<'_> {
             }
         }
         let (mut sum, mut sum_u) = (0.0, 0.0);
+        // Within a diameter of a surface source its kernel varies across it by more than
+        // `(1.5 / 0.5)²`: the draw weighs its open samples by their kernels there, evenly
+        // beyond.
+        let weigh_draw = match (ri, sj) {
+            (
+                End::Surface { c: cr, .. } | End::Cluster { c: cr, .. },
+                End::Surface { v, c: cs, .. },
+            ) => {
+                let diam = (v[0] - v[1])
+                    .length()
+                    .max((v[1] - v[2]).length())
+                    .max((v[2] - v[0]).length());
+                (cr - cs).length() < diam
+            }
+            _ => false,
+        };
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
@@ -424,8 +497,9 @@ impl KernelCtx<'_> {
         let mut n_open = 0usize;
         // The triangle that blocked the last blocked ray (`Visibility::between`).
         let mut last = None;
-        // (receiver point, source point) of the samples whose rays were open.
-        let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
+        // (receiver point, source point, point-to-point kernel) of the samples whose rays
+        // were open.
+        let mut seen: SmallVec<[(Vec3, Vec3, f64); INLINE]> = SmallVec::new();
         // Receiver points of the samples that count, and whether their rays were open.
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         // Directional cluster receiver: the surfaces its samples landed on, and the source
@@ -544,10 +618,18 @@ impl KernelCtx<'_> {
                 // A surface source's kernel at x counts the part of it above x's plane: aim the
                 // shadow ray there (a ray to a point behind x could pass where the counted part is
                 // hidden, e.g. from inside a thin slab to a desk the slab stands on).
+                // The area the source point is uniform over (the part above x's plane).
+                let mut over = 0.0;
                 let y = match (sj, nx) {
-                    (End::Surface { v, .. }, Some(nr)) => {
-                        sample_triangle_above(x, nr, &v, (sv[s][0], sv[s][1]), self.vis.margin())
-                            .unwrap_or(y)
+                    (End::Surface { v, area, .. }, Some(nr)) => {
+                        let uv = (sv[s][0], sv[s][1]);
+                        match sample_triangle_above_area(x, nr, &v, uv, self.vis.margin(), area) {
+                            Some((p, a)) => {
+                                over = a;
+                                p
+                            }
+                            None => y,
+                        }
                     }
                     (
                         End::Cluster {
@@ -587,7 +669,16 @@ impl KernelCtx<'_> {
                     open |= vis > 0.0;
                     blocked |= vis < 1.0;
                     if vis > 0.0 {
-                        seen.push((x, y));
+                        // Source points uniform over the part above x's plane: each pair's
+                        // kernel over its density is the point-to-point kernel times that
+                        // part's area.
+                        let w = if weigh_draw {
+                            let cell = over * CELL_SHARE / std::f64::consts::PI;
+                            over * point_pair_kernel(x, nx, y, ny, cell)
+                        } else {
+                            1.0
+                        };
+                        seen.push((x, y, vis * w));
                         if probe_src.is_none() {
                             probe_src = Some((y, ey));
                         }
@@ -648,7 +739,7 @@ impl KernelCtx<'_> {
             End::Surface { v, .. } if !source_leaves => Some(v),
             _ => None,
         };
-        let (deposit, draw) = deposit_at(vr.as_ref(), vs.as_ref(), &mut recv, &mut seen, &mut rng);
+        let (deposit, draw) = deposit_at(vr.as_ref(), vs.as_ref(), &mut recv, &seen, &mut rng);
         // Every ray open into a directional cluster: the hand-out would light all of its
         // children, also those no sample landed on; one ray from each of those tests it.
         let mut hidden_child = false;

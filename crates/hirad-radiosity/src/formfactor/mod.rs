@@ -20,7 +20,8 @@ pub use self::analytic::{
 };
 pub use self::kernel::{KernelCtx, KernelEval};
 pub use self::sampling::{
-    jittered_grid, sample_triangle, sample_triangle_above, sample_triangle_inset, stratified_2d,
+    jittered_grid, sample_triangle, sample_triangle_above, sample_triangle_above_area,
+    sample_triangle_inset, stratified_2d,
 };
 pub use crate::cluster_model::SH2_ERROR;
 

@@ -3,8 +3,8 @@
 //! cannot resolve), on the source when it is the smaller end (reciprocity); links with a
 //! cluster end closer than its size are judged on a geometric bound of their kernel.
 
-use super::kernel::{deposit_at, End, KernelEval, Samples, INLINE};
-use super::sampling::{jittered_grid, sample_triangle_above, stratified_2d};
+use super::kernel::{deposit_at, point_pair_kernel, End, KernelEval, Samples, CELL_SHARE, INLINE};
+use super::sampling::{jittered_grid, sample_triangle_above_area, stratified_2d};
 use super::KernelCtx;
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
@@ -140,17 +140,20 @@ impl KernelCtx<'_> {
         let mut sv = Samples::new();
         stratified_2d(n, rng, &mut sv);
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
-        // The open rays' ends, each taken to carry an equal share (the grid end drawn in
+        // The open rays' ends with their kernels over their density (the grid end drawn in
         // proportion to the form factor, the other end uniform over its part in front).
-        let mut seen: SmallVec<[(Vec3, Vec3); INLINE]> = SmallVec::new();
+        let mut seen: SmallVec<[(Vec3, Vec3, f64); INLINE]> = SmallVec::new();
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         let mut last = None;
         for (s, u) in sv.iter().enumerate() {
             // Stratified in the cumulative form factor: point x_k with probability f_k / Σ f.
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
-            let x = xs[cdf.partition_point(|&c| c <= target).min(m - 1)];
-            let y = sample_triangle_above(x, gn, &ov, (u[0], u[1]), self.vis.margin())
-                .unwrap_or_else(|| self.point_on(&ov, u[0], u[1]));
+            let kx = cdf.partition_point(|&c| c <= target).min(m - 1);
+            let x = xs[kx];
+            let other_area = if reciprocal { ar } else { as_ };
+            let (y, over) =
+                sample_triangle_above_area(x, gn, &ov, (u[0], u[1]), self.vis.margin(), other_area)
+                    .unwrap_or_else(|| (self.point_on(&ov, u[0], u[1]), other_area));
             let vis = if self.covered(oe, on, y) {
                 0.0
             } else {
@@ -160,13 +163,18 @@ impl KernelCtx<'_> {
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
             if vis > 0.0 {
-                // (receiver point, source point)
-                seen.push(if reciprocal { (y, x) } else { (x, y) });
+                // (receiver point, source point, weight): the pair's point-to-point kernel
+                // over the density it was drawn with (x by its form factor, y uniform over
+                // the part of the other end above x's plane).
+                let fk = cdf[kx] - if kx > 0 { cdf[kx - 1] } else { 0.0 };
+                let cell = (if reciprocal { as_ } else { over }) * CELL_SHARE / PI;
+                let w = vis * over * point_pair_kernel(x, Some(gn), y, on, cell) / fk.max(1e-300);
+                seen.push(if reciprocal { (y, x, w) } else { (x, y, w) });
             }
             recv.push((if reciprocal { y } else { x }, vis > 0.0));
         }
         let mixed = vmin < 1.0 && vmax > 0.0;
-        let (deposit, draw) = deposit_at(Some(&vr), Some(&vs), &mut recv, &mut seen, rng);
+        let (deposit, draw) = deposit_at(Some(&vr), Some(&vs), &mut recv, &seen, rng);
         let mut fu = acc / n_open.max(1) as f64;
         if reciprocal {
             // The mean over the receiver: F_rs = A_s F_sr / A_r, where F_sr is the mean over

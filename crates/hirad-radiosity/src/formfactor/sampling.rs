@@ -13,13 +13,26 @@ pub fn sample_triangle_above(
     x: Vec3,
     n: Vec3,
     v: &[Vec3; 3],
-    (u1, u2): (f32, f32),
+    uv: (f32, f32),
     margin: f32,
 ) -> Option<Vec3> {
+    sample_triangle_above_area(x, n, v, uv, margin, 0.0).map(|p| p.0)
+}
+
+/// [`sample_triangle_above`] with the area of the part above the plane, over which the point
+/// is uniform (`area`, the triangle's, when all of it is above).
+pub fn sample_triangle_above_area(
+    x: Vec3,
+    n: Vec3,
+    v: &[Vec3; 3],
+    (u1, u2): (f32, f32),
+    margin: f32,
+    area: f64,
+) -> Option<(Vec3, f64)> {
     let xd = x.as_dvec3();
     let nd = n.as_dvec3();
     if v.iter().all(|p| nd.dot(p.as_dvec3() - xd) >= 0.0) {
-        return Some(sample_triangle_inset(v, u1, u2, margin));
+        return Some((sample_triangle_inset(v, u1, u2, margin), area));
     }
     let mut c = [DVec3::ZERO; 16];
     let m = clip_to_hemisphere(xd, nd, &v.map(|p| p.as_dvec3()), &mut c);
@@ -42,7 +55,7 @@ pub fn sample_triangle_above(
     }
     let u = (target / areas[i].max(1e-300)).clamp(0.0, 0.999_999_9) as f32;
     let t = [c[0], c[i + 1], c[i + 2]].map(|p| p.as_vec3());
-    Some(sample_triangle_inset(&t, u, u2, margin))
+    Some((sample_triangle_inset(&t, u, u2, margin), 0.5 * total))
 }
 
 /// Point of a triangle from two uniform numbers in [0, 1) (area-uniform warp).

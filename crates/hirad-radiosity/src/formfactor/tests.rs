@@ -1,4 +1,5 @@
 use super::analytic::{parallel_disk_exact, point_to_disk, point_to_polygon};
+use super::kernel::{draw_weighted, point_pair_kernel};
 use super::near_field::closest_on_triangle;
 use super::sampling::{sample_triangle, sample_triangle_inset, stratified_2d};
 use glam::{DVec3, Vec3};
@@ -144,6 +145,59 @@ fn stratified_samples_cover_strata() {
 
 /// Inset points keep the margin from every edge (also at the corners, where two
 /// coordinates are raised), stay inside, and elsewhere are the plain area-uniform points.
+#[test]
+fn draws_follow_the_weights() {
+    // Four points of seven weights: each item is drawn in proportion to its weight (the
+    // expected count per draw is 4 w / Σw), a zero weight never; without positive weights,
+    // evenly.
+    let w = [1.0, 0.0, 3.0, 0.5, 0.5, 2.0, 1.0];
+    let items: Vec<(Vec3, Vec3, f64)> = w.iter().map(|&w| (Vec3::ZERO, Vec3::ZERO, w)).collect();
+    let mut rng = SplitMix64::new(3);
+    let mut count = [0usize; 7];
+    let draws = 20_000;
+    for _ in 0..draws {
+        let d = draw_weighted(&items, &mut rng);
+        assert_eq!(d.len(), 4);
+        for i in d {
+            count[i] += 1;
+        }
+    }
+    let total: f64 = w.iter().sum();
+    for (i, &c) in count.iter().enumerate() {
+        let expected = draws as f64 * 4.0 * w[i] / total;
+        assert!(
+            (c as f64 - expected).abs() <= 0.02 * expected + 1e-9,
+            "item {i}: {c} draws, expected {expected}"
+        );
+    }
+    let flat: Vec<(Vec3, Vec3, f64)> = (0..8).map(|_| (Vec3::ZERO, Vec3::ZERO, 0.0)).collect();
+    let mut seen = [0usize; 8];
+    for _ in 0..1000 {
+        for i in draw_weighted(&flat, &mut rng) {
+            seen[i] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&c| c > 400 && c < 600), "{seen:?}");
+}
+
+#[test]
+fn point_pair_kernel_is_cos_cos_over_r_squared() {
+    // Points 2 apart along z facing each other: 1/4; tilted by 60° at one end: 1/8; facing
+    // away: 0; no normal at x counts as facing y. With a cell of radius R around y: the
+    // coaxial disk's form factor per unit area, 1/(r² + R²), which stays finite at r = 0.
+    let (x, y) = (Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0));
+    assert!((point_pair_kernel(x, Some(Vec3::Z), y, -Vec3::Z, 0.0) - 0.25).abs() < 1e-12);
+    let tilted = Vec3::new((60f32).to_radians().sin(), 0.0, (60f32).to_radians().cos());
+    assert!((point_pair_kernel(x, Some(tilted), y, -Vec3::Z, 0.0) - 0.125).abs() < 1e-7);
+    assert_eq!(point_pair_kernel(x, Some(-Vec3::Z), y, -Vec3::Z, 0.0), 0.0);
+    assert_eq!(point_pair_kernel(x, Some(Vec3::Z), y, Vec3::Z, 0.0), 0.0);
+    assert!((point_pair_kernel(x, None, y, -Vec3::Z, 0.0) - 0.25).abs() < 1e-12);
+    let r2_cell = 0.5;
+    let disk = point_to_disk(4.0, 1.0, 1.0, PI * r2_cell);
+    let k = point_pair_kernel(x, Some(Vec3::Z), y, -Vec3::Z, r2_cell);
+    assert!((k - disk / r2_cell).abs() < 1e-9, "{k} against {disk}");
+}
+
 #[test]
 fn inset_points_keep_their_margin_from_the_edges() {
     let v = [

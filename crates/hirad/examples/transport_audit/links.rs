@@ -30,6 +30,8 @@ struct LinkRow {
     /// leaves (`Link::samples`).
     treat: usize,
     dist: f64,
+    /// Link index.
+    li: usize,
 }
 
 /// Audits every link (or those into `--object`) and prints the sums.
@@ -138,6 +140,7 @@ pub fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, so
                     0
                 },
                 dist: ((re.centroid - se.centroid).length() / diam(re).max(diam(se))) as f64,
+                li,
             })
         })
         .collect();
@@ -201,5 +204,39 @@ pub fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, so
                 println!("  distance/diameter [{:4}, {:4}): {c:8} links, {g:10.4} W against {w:10.4} W, ratio {:.4}", b[0], b[1], g / w);
             }
         }
+    }
+    // The surface <- surface links that take the source's mean whose Monte Carlo with the
+    // leaves' radiosity differs most from that with the mean.
+    let mut top: Vec<&LinkRow> = rows
+        .iter()
+        .filter(|r| r.class == 0 && r.treat == 0)
+        .collect();
+    top.sort_by(|a, b| {
+        (b.want - b.want_mean)
+            .abs()
+            .total_cmp(&(a.want - a.want_mean).abs())
+    });
+    println!(
+        "surface <- surface links with the source's mean, largest |MC(leaves) - MC(mean)| first:"
+    );
+    println!("    link   recv    src lvl(r,s) leaves  B min/mean/max (src)     dist   got        MC(leaves)  MC(mean)   src object");
+    for r in top.iter().take(o.rows) {
+        let l = &set.links[r.li];
+        let (re, se) = (&el.elems[l.recv as usize], &el.elems[l.src as usize]);
+        let mut leaves = Vec::new();
+        el.leaves_of(l.src, &mut leaves);
+        let bs: Vec<f64> = leaves
+            .iter()
+            .map(|&s| el.b[s as usize].element_sum())
+            .collect();
+        let (lo, hi) = bs
+            .iter()
+            .fold((f64::MAX, 0f64), |a, &b| (a.0.min(b), a.1.max(b)));
+        println!(
+            "{:8} {:6} {:6} {:3},{:3} {:6}  {:7.3}/{:7.3}/{:7.3} {:6.2} {:10.3e} {:10.3e} {:10.3e} {}",
+            r.li, l.recv, l.src, re.level, se.level, leaves.len(), lo,
+            el.b[l.src as usize].element_sum(), hi, r.dist, r.got, r.want, r.want_mean,
+            scene.objects[scene.tri_object[se.tri as usize] as usize]
+        );
     }
 }
