@@ -497,8 +497,8 @@ impl KernelCtx<'_> {
         let mut n_open = 0usize;
         // The triangle that blocked the last blocked ray (`Visibility::between`).
         let mut last = None;
-        // (receiver point, source point, point-to-point kernel) of the samples whose rays
-        // were open.
+        // (receiver point, source point, weight in the draw) of the samples whose rays were
+        // open.
         let mut seen: SmallVec<[(Vec3, Vec3, f64); INLINE]> = SmallVec::new();
         // Receiver points of the samples that count, and whether their rays were open.
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
