@@ -208,7 +208,8 @@ impl LinkSet {
         let b = &el.b;
         if l.samples == NO_SAMPLES {
             let d = l.draw;
-            if d.depth() == 0 {
+            // An undivided source reads its own radiosity wherever the draw points.
+            if d.depth() == 0 || el.elems[l.src as usize].num_children == 0 {
                 return b[l.src as usize] * l.k as f64;
             }
             let mut sum = glam::DVec3::ZERO;

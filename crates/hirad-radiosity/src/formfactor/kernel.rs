@@ -422,18 +422,9 @@ impl KernelCtx<'_> {
         // Within a diameter of a surface source its kernel varies across it by more than
         // `(1.5 / 0.5)²`: the draw weighs its open samples by their kernels there, evenly
         // beyond.
-        let weigh_draw = match (ri, sj) {
-            (
-                End::Surface { c: cr, .. } | End::Cluster { c: cr, .. },
-                End::Surface { v, c: cs, .. },
-            ) => {
-                let diam = (v[0] - v[1])
-                    .length()
-                    .max((v[1] - v[2]).length())
-                    .max((v[2] - v[0]).length());
-                (cr - cs).length() < diam
-            }
-            _ => false,
+        let weigh_draw = matches!(sj, End::Surface { .. }) && {
+            let ((cr, _), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
+            cr.distance(cs) < 2.0 * rs
         };
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);

@@ -225,13 +225,10 @@ pub fn links(o: &Opts, scene: &Scene, tree: &ClusterTree, caster: &RayCaster, so
         let (re, se) = (&el.elems[l.recv as usize], &el.elems[l.src as usize]);
         let mut leaves = Vec::new();
         el.leaves_of(l.src, &mut leaves);
-        let bs: Vec<f64> = leaves
-            .iter()
-            .map(|&s| el.b[s as usize].element_sum())
-            .collect();
-        let (lo, hi) = bs
-            .iter()
-            .fold((f64::MAX, 0f64), |a, &b| (a.0.min(b), a.1.max(b)));
+        let (lo, hi) = leaves.iter().fold((f64::MAX, 0f64), |a, &s| {
+            let b = el.b[s as usize].element_sum();
+            (a.0.min(b), a.1.max(b))
+        });
         println!(
             "{:8} {:6} {:6} {:3},{:3} {:6}  {:7.3}/{:7.3}/{:7.3} {:6.2} {:10.3e} {:10.3e} {:10.3e} {}",
             r.li, l.recv, l.src, re.level, se.level, leaves.len(), lo,
