@@ -310,6 +310,7 @@ fn isotropic_ctx<'a>(
         seed: 1,
         emission: ClusterEmission::Isotropic,
         reception: Reception::Oriented,
+        occlusion: true,
     }
 }
 

@@ -189,6 +189,9 @@ pub struct KernelCtx<'a> {
     pub emission: ClusterEmission,
     /// How clusters hand received irradiance to their surfaces.
     pub reception: Reception,
+    /// Shadow rays are cast; without, [`KernelCtx::evaluate_with`] gives the unoccluded
+    /// kernel of its samples alone (`ku`; no rays, deposits or draws).
+    pub occlusion: bool,
 }
 
 /// Geometry of one end of a link.
@@ -646,7 +649,9 @@ impl KernelCtx<'_> {
                     continue;
                 }
                 n_open += 1;
-                let vis = if fx > 0.0 || bounds {
+                let vis = if !self.occlusion {
+                    1.0
+                } else if fx > 0.0 || bounds {
                     rays += 1;
                     if self.covered(ey, ny, y) {
                         0.0
@@ -720,6 +725,14 @@ impl KernelCtx<'_> {
         }
         if !fmin.is_finite() {
             fmin = 0.0;
+        }
+        if !self.occlusion {
+            return KernelEval {
+                k,
+                ku,
+                est,
+                ..Default::default()
+            };
         }
         let vr = match ri {
             End::Surface { v, .. } => Some(v),

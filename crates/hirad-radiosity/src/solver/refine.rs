@@ -407,6 +407,7 @@ impl Solver<'_> {
             seed: self.cfg.seed,
             emission: self.cfg.cluster_emission,
             reception: self.cfg.cluster_receive,
+            occlusion: true,
         }
     }
 
@@ -673,15 +674,41 @@ impl Solver<'_> {
             }
             // Where no bound judged the link, a sampled kernel above the estimate shows that
             // the estimate missed something (surfaces of a cluster much nearer the other end
-            // than its centre, or in front of a plane its centre lies behind): judge that, on
-            // the samples' unoccluded kernel (the estimate's quantity), so that the rays'
-            // outcome does not choose which links stay. This keeps the links whose few sample
-            // points came out low, a bias towards dark, which is why near links have the
-            // bound.
-            if !bounded && ev.ku > link.est as f64 {
-                link.est = ev.ku as f32;
-                if let Some(a) = split(ev.ku) {
-                    return (a, *l, rays, None);
+            // than its centre, or in front of a plane its centre lies behind): judge that on
+            // the unoccluded kernel (the estimate's quantity) of sample points drawn apart from
+            // those the link keeps, so that neither the rays' outcome nor where the kept points
+            // fell chooses which links stay (judged on the kept points, the links whose points
+            // came out low stayed: a bias towards dark). Between two surfaces the estimate is
+            // the kernel's largest value over the receiver ([`KernelCtx::spread`]), which the
+            // kept points seldom exceed: judged on them.
+            if !bounded {
+                let cluster_end = r.kind == Kind::Cluster || s.kind == Kind::Cluster;
+                let ku = if cluster_end && split(f64::INFINITY).is_some() {
+                    let judge = KernelCtx {
+                        seed: c_used.seed ^ 0x1D6E_5A3B_0C4F_77E1,
+                        occlusion: false,
+                        ..*c_used
+                    };
+                    judge
+                        .evaluate_with(ri, sj, false, est_raw, unresolved, false)
+                        .ku
+                } else {
+                    ev.ku
+                };
+                if ku > link.est as f64 {
+                    link.est = ku as f32;
+                    if let Some(a) = split(ku) {
+                        return (a, *l, rays, None);
+                    }
+                }
+                // A form factor is at most one: kept points that say more (a point beside a
+                // speck of the other end, weighed by the speck's share of the area) are an
+                // outlier the judge's points missed, which kept would let a leaf return more
+                // than it receives. Refined wherever an end can be split.
+                if cluster_end && ev.ku >= 1.0 && allow {
+                    if let Some(a) = oracle::choose_split(r, s, self.min_area) {
+                        return (a, *l, rays, None);
+                    }
                 }
             }
         }
