@@ -190,7 +190,8 @@ pub struct KernelCtx<'a> {
     /// How clusters hand received irradiance to their surfaces.
     pub reception: Reception,
     /// Shadow rays are cast; without, [`KernelCtx::evaluate_with`] gives the unoccluded
-    /// kernel of its samples alone (`ku`; no rays, deposits or draws).
+    /// kernel of its `n_rays` samples alone (`ku`; no rays, near-field grid, deposits or
+    /// draws).
     pub occlusion: bool,
 }
 
@@ -417,7 +418,7 @@ impl KernelCtx<'_> {
         let est = est.unwrap_or_else(|| self.estimate(i, j));
         if let (End::Surface { .. }, End::Surface { .. }) = (ri, sj) {
             let m = near_field_points(&ri, &sj, n, fine);
-            if m > n {
+            if m > n && self.occlusion {
                 return self.near_field(&ri, &sj, m, n, est, &mut rng);
             }
         }
