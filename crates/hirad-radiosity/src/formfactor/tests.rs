@@ -143,8 +143,6 @@ fn stratified_samples_cover_strata() {
     assert_eq!(cv, [1; 8]);
 }
 
-/// Inset points keep the margin from every edge (also at the corners, where two
-/// coordinates are raised), stay inside, and elsewhere are the plain area-uniform points.
 #[test]
 fn draws_follow_the_weights() {
     // Four points of seven weights: each item is drawn in proportion to its weight (the
@@ -198,6 +196,8 @@ fn point_pair_kernel_is_cos_cos_over_r_squared() {
     assert!((k - disk / r2_cell).abs() < 1e-9, "{k} against {disk}");
 }
 
+/// Inset points keep the margin from every edge (also at the corners, where two
+/// coordinates are raised), stay inside, and elsewhere are the plain area-uniform points.
 #[test]
 fn inset_points_keep_their_margin_from_the_edges() {
     let v = [
