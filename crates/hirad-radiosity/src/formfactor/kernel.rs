@@ -426,7 +426,7 @@ impl KernelCtx<'_> {
         // Within a diameter of a surface source its kernel varies across it by more than
         // `(1.5 / 0.5)²`: the draw weighs its open samples by their kernels there, evenly
         // beyond.
-        let weigh_draw = matches!(sj, End::Surface { .. }) && {
+        let weigh_draw = self.occlusion && matches!(sj, End::Surface { .. }) && {
             let ((cr, _), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
             cr.distance(cs) < 2.0 * rs
         };
@@ -613,9 +613,11 @@ impl KernelCtx<'_> {
                 // A surface source's kernel at x counts the part of it above x's plane: aim the
                 // shadow ray there (a ray to a point behind x could pass where the counted part is
                 // hidden, e.g. from inside a thin slab to a desk the slab stands on).
-                // The area the source point is uniform over (the part above x's plane).
+                // The area the source point is uniform over (the part above x's plane). Without
+                // occlusion no ray is aimed.
                 let mut over = 0.0;
                 let y = match (sj, nx) {
+                    _ if !self.occlusion => y,
                     (End::Surface { v, area, .. }, Some(nr)) => {
                         let uv = (sv[s][0], sv[s][1]);
                         match sample_triangle_above_area(x, nr, &v, uv, self.vis.margin(), area) {
