@@ -12,10 +12,11 @@
 use super::analytic::{point_to_disk, point_to_polygon, point_to_polygon_many};
 use super::near_field::{closest_on_triangle, end_sphere, near_field_points};
 use super::sampling::{
-    sample_triangle_above, sample_triangle_above_area, sample_triangle_inset, stratified_2d,
+    sample_triangle_above, sample_triangle_above_area, sample_triangle_inset,
+    sample_triangle_solid_angle, stratified_2d,
 };
 use crate::cluster_model::{self, ClusterOrient};
-use crate::config::{ClusterEmission, Reception};
+use crate::config::{ClusterEmission, Reception, VisibilityMode};
 use crate::element::{quad_path, Elements, Kind};
 use crate::link::Deposit;
 use crate::overlap::Covers;
@@ -165,6 +166,19 @@ pub(super) fn point_pair_kernel(x: Vec3, nx: Option<Vec3>, y: Vec3, ny: Vec3, r2
     let cy = (-ny.as_dvec3().dot(d)).max(0.0);
     cx * cy / (r2 * (r2 + r2_cell))
 }
+
+/// Weight in a draw of a pair whose source point `y` was drawn by solid angle from `x`
+/// (`cos θ_x·Ω / π` over any density of `x`: `weight`), damped within a cell of the source's
+/// part `over` as [`point_pair_kernel`] is.
+pub(super) fn solid_angle_pair_weight(weight: f64, x: Vec3, y: Vec3, over: f64) -> f64 {
+    let r2 = x.distance_squared(y) as f64;
+    let cell = over * CELL_SHARE / std::f64::consts::PI;
+    weight * std::f64::consts::PI * r2 / (r2 + cell)
+}
+
+/// Within this many of a surface source's radii of the receiver (from the receiver's
+/// bounding sphere to the source's centre) the source's points are drawn by solid angle.
+const SOLID_ANGLE_RADII: f64 = 4.0;
 
 /// Share of a source's area in one cell of the deepest level a draw records
 /// ([`Deposit::LEVELS`] of midpoint subdivision).
@@ -430,6 +444,16 @@ impl KernelCtx<'_> {
             let ((cr, _), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
             cr.distance(cs) < 2.0 * rs
         };
+        // A surface source's visibility is weighed by the kernel (`q` below) where there is
+        // visibility to weigh. Within a few of its radii of the receiver its point-to-point
+        // kernel varies across it by more than `(5 / 3)²`: its points are drawn by solid angle
+        // there (bounded weights where the kernel peaks), area-uniform and weighed by the
+        // kernel beyond.
+        let weigh_vis = self.occlusion && self.vis.mode() != VisibilityMode::None;
+        let solid_draw = weigh_vis && matches!(sj, End::Surface { .. }) && {
+            let ((cr, rr), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
+            cr.distance(cs) - rr < SOLID_ANGLE_RADII * rs
+        };
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
@@ -574,12 +598,15 @@ impl KernelCtx<'_> {
                     }
                     _ => sj.endpoint(),
                 };
-                let (x, fx, nx) = match (ri, recv_cdf.as_deref()) {
+                // `f0`: the unoccluded point kernel at x (`fx` is it over the hand-out weight
+                // on a directional cluster receiver).
+                let (x, fx, nx, f0) = match (ri, recv_cdf.as_deref()) {
                     (End::Surface { v, n: nr, .. }, _) => match surface_pts.get(s) {
-                        Some(&(x, f)) => (x, f, Some(nr)),
+                        Some(&(x, f)) => (x, f, Some(nr), f),
                         None => {
                             let x = self.point_on(&v, su[s][0], su[s][1]);
-                            (x, self.sample_kernel(x, nr, &src, member), Some(nr))
+                            let f = self.sample_kernel(x, nr, &src, member);
+                            (x, f, Some(nr), f)
                         }
                     },
                     (End::Cluster { .. }, Some(cdf)) => {
@@ -593,10 +620,10 @@ impl KernelCtx<'_> {
                         let u = ((target - lo) / (hi - lo).max(1e-300)).clamp(0.0, 0.999_999_9);
                         let e = &self.elems.elems[id as usize];
                         let x = self.point_on(&e.verts, u as f32, su[s][1]);
-                        let fx = self.sample_kernel(x, e.normal, &src, member) / w;
+                        let f0 = self.sample_kernel(x, e.normal, &src, member);
                         ex = Endpoint::Surface(e.tri);
                         recv_member = id;
-                        (x, fx, Some(e.normal))
+                        (x, f0 / w, Some(e.normal), f0)
                     }
                     (End::Cluster { node, c, .. }, None) => {
                         let (x, _, _) = self.sample_cluster(node, su[s][0], su[s][1]);
@@ -607,25 +634,52 @@ impl KernelCtx<'_> {
                             fmax = fmax.max(fb);
                         }
                         let k = centre_k.unwrap_or_else(|| Self::point_kernel(c, None, &src));
-                        (x, k, None)
+                        (x, k, None, k)
                     }
                 };
                 // A surface source's kernel at x counts the part of it above x's plane: aim the
                 // shadow ray there (a ray to a point behind x could pass where the counted part is
                 // hidden, e.g. from inside a thin slab to a desk the slab stands on).
-                // The area the source point is uniform over (the part above x's plane). Without
-                // occlusion no ray is aimed.
+                // `over`: the area of that part. Without occlusion no ray is aimed.
                 let mut over = 0.0;
+                // A surface source's visibility at x weighs `q`, the point-to-point kernel
+                // over its mean `F(x)` at the drawn point (mean 1), so that the kernel is the
+                // visible share of `F(x)`: `cos θ_x·Ω / (π F(x))` for a point drawn by solid
+                // angle ([`sample_triangle_solid_angle`]; `solid`), `f(x, y)·A / F(x)` for one
+                // drawn uniformly over the part's area A.
+                let mut q = None;
+                let mut solid = false;
                 let y = match (sj, nx) {
                     _ if !self.occlusion => y,
                     (End::Surface { v, area, .. }, Some(nr)) => {
                         let uv = (sv[s][0], sv[s][1]);
-                        match sample_triangle_above_area(x, nr, &v, uv, self.vis.margin(), area) {
-                            Some((p, a)) => {
+                        let m = self.vis.margin();
+                        let drawn = (solid_draw && f0 > 0.0)
+                            .then(|| sample_triangle_solid_angle(x, nr, &v, uv, m, area))
+                            .flatten();
+                        match drawn {
+                            Some((p, w, a)) => {
                                 over = a;
+                                q = Some(w / f0);
+                                solid = true;
                                 p
                             }
-                            None => y,
+                            None => match sample_triangle_above_area(x, nr, &v, uv, m, area) {
+                                Some((p, a)) => {
+                                    over = a;
+                                    if weigh_vis && f0 > 0.0 {
+                                        // Either face of the source (f0 says it is seen).
+                                        let d = (p - x).as_dvec3();
+                                        let r2 = d.length_squared();
+                                        let f = nr.as_dvec3().dot(d).max(0.0)
+                                            * ny.as_dvec3().dot(d).abs()
+                                            / (r2 * r2).max(1e-300);
+                                        q = Some(f * a / (std::f64::consts::PI * f0));
+                                    }
+                                    p
+                                }
+                                None => y,
+                            },
                         }
                     }
                     (
@@ -668,14 +722,16 @@ impl KernelCtx<'_> {
                     open |= vis > 0.0;
                     blocked |= vis < 1.0;
                     if vis > 0.0 {
-                        // Source points uniform over the part above x's plane: each pair's
-                        // kernel over its density is the point-to-point kernel times that
-                        // part's area.
-                        let w = if weigh_draw {
-                            let cell = over * CELL_SHARE / std::f64::consts::PI;
-                            over * point_pair_kernel(x, nx, y, ny, cell)
-                        } else {
-                            1.0
+                        // Each pair's point-to-point kernel over the density of its source
+                        // point: `cos θ_x·Ω / π` drawn by solid angle, the kernel times the
+                        // area of the part above x's plane drawn uniformly.
+                        let w = match q {
+                            _ if !weigh_draw => 1.0,
+                            Some(q) if solid => solid_angle_pair_weight(q * f0, x, y, over),
+                            _ => {
+                                let cell = over * CELL_SHARE / std::f64::consts::PI;
+                                over * point_pair_kernel(x, nx, y, ny, cell)
+                            }
                         };
                         seen.push((x, y, vis * w));
                         if probe_src.is_none() {
@@ -691,13 +747,14 @@ impl KernelCtx<'_> {
                 vmax = vmax.max(vis);
                 fmin = fmin.min(fx);
                 fmax = fmax.max(fx);
-                sum += fx * vis;
+                let got = fx * vis * q.unwrap_or(1.0);
+                sum += got;
                 sum_u += fx;
                 if per_member {
-                    members.push((member, (fx * vis) as f32));
+                    members.push((member, got as f32));
                 }
-                if recv_member != NO_MEMBER && fx * vis > 0.0 {
-                    recv_open.push((recv_member, fx * vis));
+                if recv_member != NO_MEMBER && got > 0.0 {
+                    recv_open.push((recv_member, got));
                 }
             }
         }

@@ -3,9 +3,15 @@
 //! cannot resolve), on the source when it is the smaller end (reciprocity); links with a
 //! cluster end closer than its size are judged on a geometric bound of their kernel.
 
-use super::kernel::{deposit_at, point_pair_kernel, End, KernelEval, Samples, CELL_SHARE, INLINE};
-use super::sampling::{jittered_grid, sample_triangle_above_area, stratified_2d};
+use super::kernel::{
+    deposit_at, point_pair_kernel, solid_angle_pair_weight, End, KernelEval, Samples, CELL_SHARE,
+    INLINE,
+};
+use super::sampling::{
+    jittered_grid, sample_triangle_above_area, sample_triangle_solid_angle, stratified_2d,
+};
 use super::KernelCtx;
+use crate::config::VisibilityMode;
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
 use smallvec::SmallVec;
@@ -55,7 +61,8 @@ impl KernelCtx<'_> {
     /// unoccluded form factor varies over the receiver on the scale of the gap, so it is
     /// integrated over a jittered grid of `m` points (analytic point-to-polygon, no rays), and
     /// the `n` shadow rays start from points drawn among them in proportion to their form
-    /// factor: the kernel is `F_u ×` the visible share of the form factor. When the source is
+    /// factor and end on the other end drawn by solid angle: the kernel is `F_u ×` the
+    /// visible share of the form factor. When the source is
     /// the smaller end and no part of the receiver is covered, the grid lies on the source and
     /// `F_u = A_s/A_r · mean F(y → receiver)` (reciprocity): seen from a small source, a large
     /// receiver close to it fills a smooth part of the hemisphere, while seen from the
@@ -141,7 +148,7 @@ impl KernelCtx<'_> {
         stratified_2d(n, rng, &mut sv);
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
         // The open rays' ends with their kernels over their density (the grid end drawn in
-        // proportion to the form factor, the other end uniform over its part in front).
+        // proportion to the form factor, the other end by solid angle from it).
         let mut seen: SmallVec<[(Vec3, Vec3, f64); INLINE]> = SmallVec::new();
         let mut recv: SmallVec<[(Vec3, bool); INLINE]> = SmallVec::new();
         let mut last = None;
@@ -150,25 +157,52 @@ impl KernelCtx<'_> {
             let target = (s as f64 + rng.next_f64()) / n as f64 * acc;
             let kx = cdf.partition_point(|&c| c <= target).min(m - 1);
             let x = xs[kx];
+            let fk = cdf[kx] - if kx > 0 { cdf[kx - 1] } else { 0.0 };
+            // The other end's point in proportion to its point-to-point kernel from x (solid
+            // angle times cos θ_x): its visibility, weighed by `cos θ_x·Ω / (π F(x))`, has the
+            // visible share of F(x) as its mean. Area-uniform points (where the solid angle
+            // cannot be taken) weigh visibility evenly over the other end: near ones, which
+            // see x more often and count more, would count as much as far ones.
             let other_area = if reciprocal { ar } else { as_ };
-            let (y, over) =
-                sample_triangle_above_area(x, gn, &ov, (u[0], u[1]), self.vis.margin(), other_area)
+            let drawn = (self.vis.mode() != VisibilityMode::None)
+                .then(|| {
+                    let m = self.vis.margin();
+                    sample_triangle_solid_angle(x, gn, &ov, (u[0], u[1]), m, other_area)
+                })
+                .flatten();
+            let (y, q, over, solid) = match drawn {
+                Some((y, weight, over)) => (y, weight / fk.max(1e-300), over, true),
+                None => {
+                    let (y, over) = sample_triangle_above_area(
+                        x,
+                        gn,
+                        &ov,
+                        (u[0], u[1]),
+                        self.vis.margin(),
+                        other_area,
+                    )
                     .unwrap_or_else(|| (self.point_on(&ov, u[0], u[1]), other_area));
+                    (y, 1.0, over, false)
+                }
+            };
             let vis = if self.covered(oe, on, y) {
                 0.0
             } else {
                 self.vis.between(x, y, ge, oe, &mut last)
             };
-            vis_sum += vis;
+            vis_sum += vis * q;
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
             if vis > 0.0 {
-                // (receiver point, source point, weight): the pair's point-to-point kernel
-                // over the density it was drawn with (x by its form factor, y uniform over
-                // the part of the other end above x's plane).
-                let fk = cdf[kx] - if kx > 0 { cdf[kx - 1] } else { 0.0 };
-                let cell = (if reciprocal { as_ } else { over }) * CELL_SHARE / PI;
-                let w = vis * over * point_pair_kernel(x, Some(gn), y, on, cell) / fk.max(1e-300);
+                // (receiver point, source point, weight): the pair's kernel over the density
+                // it was drawn with (x by its form factor, y by q), damped within a cell.
+                let part = if reciprocal { as_ } else { over };
+                let w = if solid {
+                    vis * solid_angle_pair_weight(q, x, y, part)
+                } else {
+                    let cell = part * CELL_SHARE / PI;
+                    vis * over * point_pair_kernel(x, Some(gn), y, on, cell) / fk.max(1e-300)
+                };
                 seen.push(if reciprocal { (y, x, w) } else { (x, y, w) });
             }
             recv.push((if reciprocal { y } else { x }, vis > 0.0));

@@ -1,7 +1,9 @@
 use super::analytic::{parallel_disk_exact, point_to_disk, point_to_polygon};
 use super::kernel::{draw_weighted, point_pair_kernel};
 use super::near_field::closest_on_triangle;
-use super::sampling::{sample_triangle, sample_triangle_inset, stratified_2d};
+use super::sampling::{
+    sample_triangle, sample_triangle_inset, sample_triangle_solid_angle, stratified_2d,
+};
 use glam::{DVec3, Vec3};
 use hirad_core::rng::SplitMix64;
 use std::f64::consts::PI;
@@ -331,5 +333,95 @@ fn many_points_give_the_bits_of_one_point_at_a_time() {
                 assert_eq!(out[j].to_bits(), one.to_bits(), "point {j}, {m} corners");
             }
         }
+    }
+}
+
+/// Points drawn by (cosine-weighted) solid angle: their weights' mean is the analytic
+/// point-to-polygon form factor (which an error in the warps, their densities or the fan's
+/// solid angles would miss), each point lies on the part of the triangle above the receiver's
+/// plane, and the weights give a sub-region the share of the form factor it subtends.
+#[test]
+fn solid_angle_draws_average_to_the_form_factor() {
+    let tris = [
+        // Under the receiver, far and near; a wall beside it, partly behind its plane; tilted.
+        [
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(2.0, -1.0, 1.0),
+            Vec3::new(0.0, 2.0, 1.0),
+        ],
+        [
+            Vec3::new(0.1, 0.0, 0.02),
+            Vec3::new(0.3, 0.1, 0.02),
+            Vec3::new(0.0, 0.3, 0.02),
+        ],
+        [
+            Vec3::new(0.2, -1.0, -0.5),
+            Vec3::new(0.2, 1.0, -0.5),
+            Vec3::new(0.2, 0.0, 1.5),
+        ],
+        [
+            Vec3::new(-0.5, 0.3, 0.1),
+            Vec3::new(0.5, 0.6, 0.9),
+            Vec3::new(0.4, -0.7, 0.3),
+        ],
+    ];
+    let (x, n) = (Vec3::ZERO, Vec3::Z);
+    let mut rng = SplitMix64::new(7);
+    for v in tris {
+        let poly = v.map(|p| p.as_dvec3());
+        let pn = (poly[1] - poly[0]).cross(poly[2] - poly[0]).normalize();
+        // The form factor counts the side facing x.
+        let pn = if pn.dot(poly[0]) > 0.0 { -pn } else { pn };
+        let exact = point_to_polygon(x.as_dvec3(), n.as_dvec3(), &poly, pn);
+        let area = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).length() as f64;
+        let centre = (v[0] + v[1] + v[2]) / 3.0;
+        let mut samples = Vec::new();
+        stratified_2d(4096, &mut rng, &mut samples);
+        let (mut sum, mut near) = (0.0, 0.0);
+        for u in &samples {
+            let (y, w, _) = sample_triangle_solid_angle(x, n, &v, (u[0], u[1]), 0.0, area)
+                .expect("a part above the plane");
+            assert!(n.dot(y - x) >= -1e-5, "{y} below the plane");
+            let on_plane = pn.as_vec3().dot(y - v[0]).abs();
+            assert!(
+                on_plane < 1e-4,
+                "{y} off the triangle's plane by {on_plane}"
+            );
+            sum += w;
+            if y.distance(x) < centre.distance(x) {
+                near += w;
+            }
+        }
+        let mean = sum / samples.len() as f64;
+        assert!(
+            (mean / exact - 1.0).abs() < 0.01,
+            "mean weight {mean} against F = {exact}"
+        );
+        // The weights' share nearer than the centre against brute force over a fine
+        // area-uniform grid of the same triangle (the kernel `cos θ_x cos θ_y / r²`).
+        let (mut f_near, mut f_all) = (0.0, 0.0);
+        let k = 400;
+        for i in 0..k {
+            for j in 0..k {
+                let y =
+                    sample_triangle(&v, (i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
+                let d = (y - x).as_dvec3();
+                let cx = n.as_dvec3().dot(d);
+                if cx <= 0.0 {
+                    continue;
+                }
+                let f = cx * pn.dot(-d).abs() / d.length_squared().powi(2);
+                f_all += f;
+                if y.distance(x) < centre.distance(x) {
+                    f_near += f;
+                }
+            }
+        }
+        let share = near / sum;
+        assert!(
+            (share - f_near / f_all).abs() < 0.02,
+            "weights nearer than the centre {share}, form factor share {}",
+            f_near / f_all
+        );
     }
 }
