@@ -436,7 +436,8 @@ impl KernelCtx<'_> {
                 return self.near_field(&ri, &sj, m, n, est, &mut rng);
             }
         }
-        let (mut sum, mut sum_u) = (0.0, 0.0);
+        // Σ fx·V·q, Σ fx and Σ fx·q over the samples that count (`q` below).
+        let (mut sum, mut sum_u, mut sum_q) = (0.0, 0.0, 0.0);
         // Within a diameter of a surface source its kernel varies across it by more than
         // `(1.5 / 0.5)²`: the draw weighs its open samples by their kernels there, evenly
         // beyond.
@@ -750,6 +751,7 @@ impl KernelCtx<'_> {
                 let got = fx * vis * q.unwrap_or(1.0);
                 sum += got;
                 sum_u += fx;
+                sum_q += fx * q.unwrap_or(1.0);
                 if per_member {
                     members.push((member, got as f32));
                 }
@@ -769,11 +771,18 @@ impl KernelCtx<'_> {
                 }
             }
         }
+        // The weights `q` as a ratio: Σ fx·V·q / Σ fx·q times the mean of fx, so that a link
+        // whose rays all see the source (or none does) keeps the mean unoccluded kernel of its
+        // points (or 0) exactly, and one ray's kernel is its point's kernel or 0: the draw's
+        // density, near the kernel's, removes most of the bias, the ratio the rest as rays
+        // grow, without the weights' spread (kernels above their points' would give leaves
+        // gains above one).
+        let ratio = if sum_q > 0.0 { sum_u / sum_q } else { 1.0 };
         let n_open = n_open.max(1) as f64;
         for m in &mut members {
-            m.1 = (m.1 as f64 / n_open) as f32;
+            m.1 = (m.1 as f64 * ratio / n_open) as f32;
         }
-        let mut k = sum / n_open;
+        let mut k = sum * ratio / n_open;
         let mut ku = sum_u / n_open;
         if recv_cdf.is_some() && k > 1.0 {
             ku /= k;

@@ -147,6 +147,8 @@ impl KernelCtx<'_> {
         let mut sv = Samples::new();
         stratified_2d(n, rng, &mut sv);
         let (mut vis_sum, mut vmin, mut vmax) = (0.0f64, 1.0f64, 0.0f64);
+        // Σ q: the visible share is Σ V·q / Σ q (see `evaluate_with`).
+        let mut q_sum = 0.0f64;
         // The open rays' ends with their kernels over their density (the grid end drawn in
         // proportion to the form factor, the other end by solid angle from it).
         let mut seen: SmallVec<[(Vec3, Vec3, f64); INLINE]> = SmallVec::new();
@@ -191,6 +193,7 @@ impl KernelCtx<'_> {
                 self.vis.between(x, y, ge, oe, &mut last)
             };
             vis_sum += vis * q;
+            q_sum += q;
             vmin = vmin.min(vis);
             vmax = vmax.max(vis);
             if vis > 0.0 {
@@ -218,7 +221,7 @@ impl KernelCtx<'_> {
             fmax *= as_ / ar;
         }
         KernelEval {
-            k: fu * vis_sum / n as f64,
+            k: fu * vis_sum / if q_sum > 0.0 { q_sum } else { n as f64 },
             ku: fu,
             est,
             kmin: fmin * vmin,
