@@ -7,6 +7,8 @@
 //! reception samples its surfaces in proportion to their hand-out weights (see
 //! [`KernelCtx::evaluate_with`]). Shadow rays of cluster ends start from points on their
 //! surfaces and leave out only those surfaces (directional) or the whole cluster (isotropic).
+//! A surface source's ray ends are drawn near its receiver in proportion to the point-to-point
+//! kernel, so that visibility counts where the kernel does.
 //! Points of a triangle that a coplanar one covers ([`Covers`]) neither receive nor emit.
 
 use super::analytic::{point_to_disk, point_to_polygon, point_to_polygon_many};

@@ -3,7 +3,8 @@
 //! radiosity `B_j`.
 //!
 //! - [`analytic`]: point-to-disk estimate, point-to-polygon form factor;
-//! - [`sampling`]: points on triangles, stratified and jittered-grid samples;
+//! - [`sampling`]: points on triangles (area-uniform, or by the kernel's solid angle),
+//!   stratified and jittered-grid samples;
 //! - [`KernelCtx`]: the sampled kernels of the solver, with shadow rays ([`KernelEval`]);
 //! - near links: surfaces closer than their size integrate on a grid, cluster ends are
 //!   bounded ([`KernelCtx::near_bound`]).
