@@ -170,8 +170,8 @@ pub(super) fn point_pair_kernel(x: Vec3, nx: Option<Vec3>, y: Vec3, ny: Vec3, r2
 }
 
 /// Weight in a draw of a pair whose source point `y` was drawn by solid angle from `x`
-/// (`cos θ_x·Ω / π` over any density of `x`: `weight`), damped within a cell of the source's
-/// part `over` as [`point_pair_kernel`] is.
+/// ([`sample_triangle_solid_angle`]'s weight `cos θ_x / (π p)` over any density of `x`:
+/// `weight`), damped within a cell of the source's part `over` as [`point_pair_kernel`] is.
 pub(super) fn solid_angle_pair_weight(weight: f64, x: Vec3, y: Vec3, over: f64) -> f64 {
     let r2 = x.distance_squared(y) as f64;
     let cell = over * CELL_SHARE / std::f64::consts::PI;
@@ -647,9 +647,9 @@ impl KernelCtx<'_> {
                 let mut over = 0.0;
                 // A surface source's visibility at x weighs `q`, the point-to-point kernel
                 // over its mean `F(x)` at the drawn point (mean 1), so that the kernel is the
-                // visible share of `F(x)`: `cos θ_x·Ω / (π F(x))` for a point drawn by solid
-                // angle ([`sample_triangle_solid_angle`]; `solid`), `f(x, y)·A / F(x)` for one
-                // drawn uniformly over the part's area A.
+                // visible share of `F(x)`: `cos θ_x / (π p F(x))` for a point drawn by solid
+                // angle with density `p` ([`sample_triangle_solid_angle`]; `solid`),
+                // `f(x, y)·A / F(x)` for one drawn uniformly over the part's area A.
                 let mut q = None;
                 let mut solid = false;
                 let y = match (sj, nx) {
@@ -726,7 +726,7 @@ impl KernelCtx<'_> {
                     blocked |= vis < 1.0;
                     if vis > 0.0 {
                         // Each pair's point-to-point kernel over the density of its source
-                        // point: `cos θ_x·Ω / π` drawn by solid angle, the kernel times the
+                        // point: `cos θ_x / (π p)` drawn by solid angle, the kernel times the
                         // area of the part above x's plane drawn uniformly.
                         let w = match q {
                             _ if !weigh_draw => 1.0,

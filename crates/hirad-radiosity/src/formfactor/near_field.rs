@@ -160,11 +160,11 @@ impl KernelCtx<'_> {
             let kx = cdf.partition_point(|&c| c <= target).min(m - 1);
             let x = xs[kx];
             let fk = cdf[kx] - if kx > 0 { cdf[kx - 1] } else { 0.0 };
-            // The other end's point in proportion to its point-to-point kernel from x (solid
-            // angle times cos θ_x): its visibility, weighed by `cos θ_x·Ω / (π F(x))`, has the
-            // visible share of F(x) as its mean. Area-uniform points (where the solid angle
-            // cannot be taken) weigh visibility evenly over the other end: near ones, which
-            // see x more often and count more, would count as much as far ones.
+            // The other end's point nearly in proportion to its point-to-point kernel from x
+            // (solid angle times cos θ_x, density `p`): its visibility, weighed by
+            // `q = cos θ_x / (π p F(x))` (mean 1), gives the visible share of F(x) as
+            // `Σ V·q / Σ q`. Area-uniform points (where the solid angle cannot be taken, or
+            // without shadow rays) weigh visibility evenly over the other end.
             let other_area = if reciprocal { ar } else { as_ };
             let drawn = (self.vis.mode() != VisibilityMode::None)
                 .then(|| {
