@@ -440,23 +440,26 @@ impl KernelCtx<'_> {
         }
         // Σ fx·V·q, Σ fx and Σ fx·q over the samples that count (`q` below).
         let (mut sum, mut sum_u, mut sum_q) = (0.0, 0.0, 0.0);
+        // Centre distance, receiver radius and source radius, for a surface source.
+        let spheres = match sj {
+            End::Surface { .. } if self.occlusion => {
+                let ((cr, rr), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
+                Some((cr.distance(cs), rr, rs))
+            }
+            _ => None,
+        };
         // Within a diameter of a surface source its kernel varies across it by more than
         // `(1.5 / 0.5)²`: the draw weighs its open samples by their kernels there, evenly
         // beyond.
-        let weigh_draw = self.occlusion && matches!(sj, End::Surface { .. }) && {
-            let ((cr, _), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
-            cr.distance(cs) < 2.0 * rs
-        };
+        let weigh_draw = spheres.is_some_and(|(d, _, rs)| d < 2.0 * rs);
         // A surface source's visibility is weighed by the kernel (`q` below) where there is
         // visibility to weigh. Within a few of its radii of the receiver its point-to-point
         // kernel varies across it by more than `(5 / 3)²`: its points are drawn by solid angle
         // there (bounded weights where the kernel peaks), area-uniform and weighed by the
         // kernel beyond.
         let weigh_vis = self.occlusion && self.vis.mode() != VisibilityMode::None;
-        let solid_draw = weigh_vis && matches!(sj, End::Surface { .. }) && {
-            let ((cr, rr), (cs, rs)) = (end_sphere(&ri), end_sphere(&sj));
-            cr.distance(cs) - rr < SOLID_ANGLE_RADII * rs
-        };
+        let solid_draw =
+            weigh_vis && spheres.is_some_and(|(d, rr, rs)| d - rr < SOLID_ANGLE_RADII * rs);
         let mut rays = 0u64;
         let (mut vmin, mut vmax) = (1.0f64, 0.0f64);
         let (mut fmin, mut fmax) = (f64::INFINITY, 0.0f64);
