@@ -165,6 +165,15 @@ pub fn triangle_area(a: Vec3, b: Vec3, c: Vec3) -> f32 {
     0.5 * (b - a).cross(c - a).length()
 }
 
+/// Length of the longest edge of triangle `v`.
+#[inline]
+pub fn longest_edge(v: &[Vec3; 3]) -> f32 {
+    (v[1] - v[0])
+        .length()
+        .max((v[2] - v[1]).length())
+        .max((v[0] - v[2]).length())
+}
+
 /// Area of the triangle (a, b, c) computed in f64.
 #[inline]
 pub fn triangle_area_f64(a: Vec3, b: Vec3, c: Vec3) -> f64 {

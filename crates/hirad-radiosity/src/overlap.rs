@@ -15,7 +15,7 @@
 use super::shut::ShutMasks;
 use glam::{Vec2, Vec3};
 use hirad_accel::cluster::ClusterTree;
-use hirad_core::geom::Aabb;
+use hirad_core::geom::{longest_edge, Aabb};
 use hirad_scene::Scene;
 use rayon::prelude::*;
 
@@ -280,67 +280,53 @@ fn covering(
         return Vec::new();
     }
     let ri = rank(i);
-    let edge = |v: &[Vec3; 3]| {
-        (v[1] - v[0])
-            .length()
-            .max((v[2] - v[1]).length())
-            .max((v[0] - v[2]).length())
-    };
+    let edge = longest_edge;
     let bb = scene.tri_bbox(i as usize);
     let grow = (REL_TOL * edge(&vi)).max(gap(i));
     let (lo, hi) = (bb.min - Vec3::splat(grow), bb.max + Vec3::splat(grow));
     let mut out = Vec::new();
-    let mut stack = vec![0u32];
-    while let Some(node) = stack.pop() {
-        let nd = &tree.nodes[node as usize];
-        if nd.bbox.max.cmplt(lo).any() || nd.bbox.min.cmpgt(hi).any() {
-            continue;
+    tree.any_surface_near(lo, hi, |j| {
+        if j == i || scene.areas[j as usize] <= 0.0 {
+            return false;
         }
-        let surf = &tree.surfaces
-            [nd.first_surface as usize..(nd.first_surface + nd.num_surfaces) as usize];
-        for &j in surf {
-            if j == i || scene.areas[j as usize] <= 0.0 {
-                continue;
-            }
-            let nj = scene.normals[j as usize];
-            let c = ni.dot(nj);
-            if c.abs() < 1.0 - PARALLEL {
-                continue;
-            }
-            let vj = scene.tri_vertices(j as usize);
-            let tol = REL_TOL * edge(&vi).max(edge(&vj));
-            let d = vj.map(|p| ni.dot(p - vi[0]));
-            let side = if d.iter().all(|x| x.abs() <= tol) {
-                let owns = match rank(j).partial_cmp(&ri) {
-                    Some(std::cmp::Ordering::Less) => true,
-                    Some(std::cmp::Ordering::Equal) => j < i,
-                    _ => false,
-                };
-                if !owns || (c < 0.0 && !back(i) && !back(j)) {
-                    continue;
-                }
-                Vec3::ZERO
-            } else {
-                let g = gap(i).min(gap(j));
-                if d.iter().all(|&x| x > 0.0 && x <= g) {
-                    ni
-                } else if back(i) && d.iter().all(|&x| x < 0.0 && x >= -g) {
-                    -ni
-                } else {
-                    continue;
-                }
+        let nj = scene.normals[j as usize];
+        let c = ni.dot(nj);
+        if c.abs() < 1.0 - PARALLEL {
+            return false;
+        }
+        let vj = scene.tri_vertices(j as usize);
+        let tol = REL_TOL * edge(&vi).max(edge(&vj));
+        let d = vj.map(|p| ni.dot(p - vi[0]));
+        let side = if d.iter().all(|x| x.abs() <= tol) {
+            let owns = match rank(j).partial_cmp(&ri) {
+                Some(std::cmp::Ordering::Less) => true,
+                Some(std::cmp::Ordering::Equal) => j < i,
+                _ => false,
             };
-            let axis = drop_axis(ni);
-            if overlap(
-                &vi.map(|p| project(p, axis)),
-                &vj.map(|p| project(p, axis)),
-                tol,
-            ) {
-                out.push((j, side));
+            if !owns || (c < 0.0 && !back(i) && !back(j)) {
+                return false;
             }
+            Vec3::ZERO
+        } else {
+            let g = gap(i).min(gap(j));
+            if d.iter().all(|&x| x > 0.0 && x <= g) {
+                ni
+            } else if back(i) && d.iter().all(|&x| x < 0.0 && x >= -g) {
+                -ni
+            } else {
+                return false;
+            }
+        };
+        let axis = drop_axis(ni);
+        if overlap(
+            &vi.map(|p| project(p, axis)),
+            &vj.map(|p| project(p, axis)),
+            tol,
+        ) {
+            out.push((j, side));
         }
-        stack.extend(nd.children());
-    }
+        false
+    });
     out.sort_unstable_by_key(|e| e.0);
     out
 }

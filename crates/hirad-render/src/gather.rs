@@ -25,12 +25,13 @@ pub use lookup::{Lookup, SolutionLookup};
 
 use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
+use crate::facing::Facing;
 use crate::sample::{cosine_sample, power_heuristic, surface_eps, Lights};
 use adaptive::Spread;
 use bright::Bright;
 use cache::Cache;
 use glam::{DVec3, Vec3};
-use hirad_accel::ray::RayCaster;
+use hirad_accel::ray::{Hit, RayCaster};
 use hirad_core::progress::Progress;
 use hirad_core::rng::SplitMix64;
 use hirad_core::{Error, Result};
@@ -147,6 +148,7 @@ pub struct Gatherer<'a> {
     half_casters: [Option<RayCaster<'a>>; 2],
     opts: GatherOptions,
     lights: Lights,
+    facing: Facing,
     bright: Option<Bright>,
     eps: f32,
     up: Vec3,
@@ -215,8 +217,9 @@ impl<'a> Gatherer<'a> {
                 .as_ref()
                 .map(|m| RayCaster::new(&m.scene, &m.tree))
         });
+        let facing = Facing::new(scene, caster.tree);
         let bright = if opts.bright > 0.0 {
-            Bright::new(sol, scene, caster, opts.bright)
+            Bright::new(sol, scene, caster, &facing, opts.bright)
         } else {
             None
         };
@@ -227,12 +230,20 @@ impl<'a> Gatherer<'a> {
             half_casters,
             opts: opts.clone(),
             lights: Lights::new(scene),
+            facing,
             bright,
             eps: surface_eps(scene),
             up: scene.up.vector(),
             near2: opts.near * opts.near,
             lum: crate::metrics::srgb_to_xyz_matrix().row(1),
         }
+    }
+
+    /// The closest hit in the scene for `t ∈ [0, tmax]`, the face of coincident ones that
+    /// faces the ray ([`Facing`]).
+    fn closest(&self, o: Vec3, d: Vec3, tmax: f32) -> Option<Hit> {
+        let h = self.caster.closest(o, d, 0.0, tmax)?;
+        Some(self.facing.resolve(self.scene, self.caster, (o, d), h))
     }
 
     /// Radiosity B (W/m²) of the solution at point `q` of a surface, on the side whose normal
@@ -392,7 +403,7 @@ impl<'a> Gatherer<'a> {
             return None;
         }
         cnt.gather += 1;
-        let Some(h) = self.caster.closest(x, d, 0.0, f32::INFINITY) else {
+        let Some(h) = self.closest(x, d, f32::INFINITY) else {
             if let Some(sky) = scene.sky {
                 if d.dot(self.up) > 0.0 {
                     out += sky;
@@ -484,7 +495,7 @@ impl<'a> Gatherer<'a> {
                 stratum(perm_b[k as usize], a, b, &mut rng),
             );
             cnt.camera += 1;
-            let Some(h) = self.caster.closest(frame.eye, d, 0.0, f32::INFINITY) else {
+            let Some(h) = self.closest(frame.eye, d, f32::INFINITY) else {
                 continue;
             };
             let tri = h.tri as usize;

@@ -15,6 +15,7 @@
 //! draws, so rasterised solutions compare directly with path-traced references.
 
 pub mod camera;
+mod facing;
 pub mod gather;
 pub mod image;
 pub mod metrics;

@@ -10,6 +10,7 @@
 
 use super::camera::{CameraFrame, CameraView};
 use super::image::{render_rows, Image};
+use crate::facing::Facing;
 use crate::sample::{cosine_sample, power_heuristic, surface_eps, Lights};
 use glam::Vec3;
 use hirad_accel::ray::{RayCaster, Segment};
@@ -151,6 +152,8 @@ impl RayLog {
 ///   scene makes two-sided (`Scene::has_back`), the back is a diffuse surface with the same ρ
 ///   (but it does not emit).
 /// - Emitters emit radiance L_e from the front face only.
+/// - A ray that meets coincident faces facing opposite ways at once sees the one facing it
+///   (`facing.rs`).
 /// - Next-event estimation on emitting triangles: a triangle is chosen with probability
 ///   proportional to its power `A · mean(L_e)`, a point uniformly on it; the light sample and
 ///   the cosine-weighted BRDF sample are combined with multiple importance sampling (power
@@ -169,6 +172,7 @@ pub struct PathTracer<'a> {
     caster: &'a RayCaster<'a>,
     opts: ReferenceOptions,
     lights: Lights,
+    facing: Facing,
     /// Offset of secondary ray origins along the normal (scene units).
     eps: f32,
     up: Vec3,
@@ -239,6 +243,7 @@ impl<'a> PathTracer<'a> {
             caster,
             opts: opts.clone(),
             lights: Lights::new(scene),
+            facing: Facing::new(scene, caster.tree),
             eps: surface_eps(scene),
             up: scene.up.vector(),
         }
@@ -267,7 +272,7 @@ impl<'a> PathTracer<'a> {
         loop {
             cnt.segment(o, d, 0.0, f32::INFINITY);
             let hit = match self.caster.closest(o, d, 0.0, f32::INFINITY) {
-                Some(h) => h,
+                Some(h) => self.facing.resolve(scene, self.caster, (o, d), h),
                 None => {
                     if depth > 0 {
                         if let Some(sky) = scene.sky {

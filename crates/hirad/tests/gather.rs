@@ -463,6 +463,80 @@ fn near_hits_get_one_more_bounce_of_exact_light() {
     }
 }
 
+/// A double-sided lamp panel modelled as two one-sided emitters back to back (the down-facing
+/// one first, so that it wins ties, and triangulated along the other diagonal) over a floor:
+/// a camera above it sees the up-facing one's L_e on every pixel, not the back of the other.
+#[test]
+fn a_camera_ray_sees_the_face_of_coincident_faces_that_faces_it() {
+    let h = 0.5f32;
+    let positions = vec![
+        Vec3::new(-4.0, -4.0, 0.0),
+        Vec3::new(4.0, -4.0, 0.0),
+        Vec3::new(4.0, 4.0, 0.0),
+        Vec3::new(-4.0, 4.0, 0.0),
+        Vec3::new(-h, -h, 1.0),
+        Vec3::new(-h, h, 1.0),
+        Vec3::new(h, h, 1.0),
+        Vec3::new(h, -h, 1.0),
+    ];
+    let triangles = vec![
+        [0, 1, 2],
+        [0, 2, 3],
+        [4, 5, 6],
+        [4, 6, 7],
+        [5, 4, 7],
+        [5, 7, 6],
+    ];
+    let (down, up) = (Vec3::ONE, Vec3::new(2.0, 3.0, 4.0));
+    let raw = RawScene {
+        name: "double-sided panel".into(),
+        positions: positions.clone(),
+        triangles: triangles.clone(),
+        tri_material: vec![0, 0, 1, 1, 2, 2],
+        tri_object: vec![0; 6],
+        materials: vec![
+            Material::diffuse("floor", Vec3::splat(0.5)),
+            Material {
+                name: "down".into(),
+                rho: Vec3::ZERO,
+                emission: down,
+            },
+            Material {
+                name: "up".into(),
+                rho: Vec3::ZERO,
+                emission: up,
+            },
+        ],
+        up: UpAxis::Z,
+        ..Default::default()
+    };
+    let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
+    assert!(scene.normals[2].z < -0.99 && scene.normals[4].z > 0.99);
+    let mut colors = vec![Vec3::ZERO; 4];
+    colors.extend([Vec3::splat(std::f32::consts::PI); 4]);
+    let mesh = ColoredMesh {
+        positions,
+        triangles,
+        colors,
+    };
+    let view = CameraView {
+        eye: Vec3::new(0.05, 0.02, 2.0),
+        target: Vec3::new(0.05, 0.02, 0.0),
+        up: Vec3::Y,
+        fov_deg: 40.0,
+        width: 12,
+        height: 10,
+    };
+    let opts = GatherOptions {
+        rays: 4,
+        ..Default::default()
+    };
+    let img = gather(&scene, &mesh, &view, &opts);
+    for p in &img.pixels {
+        assert!((*p - up).abs().max_element() < 1e-5, "{p}");
+    }
+}
+
 /// Same seed: the same image with 1 and 2 threads, bit for bit; another seed: another image.
 #[test]
 fn gather_is_seeded_and_thread_count_independent() {

@@ -82,19 +82,26 @@ fn mean_radiance(s: &Scene, opts: &ReferenceOptions, origin: Vec3, dir: Vec3, n:
     (sum / n as f64).as_vec3()
 }
 
+/// Adds the corners of the square [−1, 1]² at height 1 (counter-clockwise seen from below)
+/// to `r`; returns the first one's index.
+fn square_at_height_one(r: &mut RawScene) -> u32 {
+    let b = r.positions.len() as u32;
+    r.positions.extend([
+        Vec3::new(-1.0, 1.0, -1.0),
+        Vec3::new(1.0, 1.0, -1.0),
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(-1.0, 1.0, 1.0),
+    ]);
+    b
+}
+
 #[test]
 fn square_emitter_over_a_floor() {
     // Emitter: square [−1, 1]² at height 1 facing down, L_e = 1, ρ = 0. The floor under its
     // centre has radiance ρ·L_e·F, F = 4 × corner-rectangle form factor with X = Y = 1:
     // F_corner = (1/2π)·2·(1/√2)·atan(1/√2).
     let s = floor_scene(|r| {
-        let b = r.positions.len() as u32;
-        r.positions.extend([
-            Vec3::new(-1.0, 1.0, -1.0),
-            Vec3::new(1.0, 1.0, -1.0),
-            Vec3::new(1.0, 1.0, 1.0),
-            Vec3::new(-1.0, 1.0, 1.0),
-        ]);
+        let b = square_at_height_one(r);
         r.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
         r.tri_material.extend([1, 1]);
         r.tri_object.extend([0, 0]);
@@ -114,6 +121,50 @@ fn square_emitter_over_a_floor() {
     // Looking at the emitter from below: L_e exactly (camera ray, weight 1).
     let up = mean_radiance(&s, &opts, Vec3::new(0.3, 0.5, 0.2), Vec3::Y, 10);
     assert!((up - Vec3::ONE).abs().max_element() < 1e-6);
+}
+
+#[test]
+fn a_ray_sees_the_face_of_coincident_faces_that_faces_it() {
+    // A double-sided lamp panel modelled as two one-sided emitters back to back, the
+    // down-facing one first (lower ids win ties) and triangulated along the other diagonal,
+    // over the floor: looking down at it from above shows the up-facing one's L_e exactly
+    // (a camera ray, weight 1), not the back of the other; from below, the down-facing one's.
+    let s = floor_scene(|r| {
+        let b = square_at_height_one(r);
+        r.triangles.extend([
+            [b, b + 1, b + 2],
+            [b, b + 2, b + 3],
+            [b + 1, b, b + 3],
+            [b + 1, b + 3, b + 2],
+        ]);
+        r.tri_material.extend([1, 1, 2, 2]);
+        r.tri_object.extend([0, 0, 0, 0]);
+        for (name, e) in [("down", Vec3::ONE), ("up", Vec3::new(2.0, 3.0, 4.0))] {
+            r.materials.push(Material {
+                name: name.into(),
+                rho: Vec3::ZERO,
+                emission: e,
+            });
+        }
+    });
+    assert!(s.normals[2].dot(Vec3::NEG_Y) > 0.999 && s.normals[4].dot(Vec3::Y) > 0.999);
+    for two_sided in [false, true] {
+        let opts = ReferenceOptions {
+            two_sided,
+            ..Default::default()
+        };
+        let mut rng = SplitMix64::new(5);
+        for _ in 0..200 {
+            let (x, z) = (rng.next_f32() * 1.8 - 0.9, rng.next_f32() * 1.8 - 0.9);
+            let top = Vec3::new(x, 2.0, z);
+            let down = Vec3::new(x * 0.3, 0.0, z * 0.3) - top;
+            let got = mean_radiance(&s, &opts, top, down.normalize(), 1);
+            assert_eq!(got, Vec3::new(2.0, 3.0, 4.0), "from above at {top}");
+            let bottom = Vec3::new(x, 0.5, z);
+            let got = mean_radiance(&s, &opts, bottom, Vec3::Y, 1);
+            assert_eq!(got, Vec3::ONE, "from below at {bottom}");
+        }
+    }
 }
 
 #[test]

@@ -373,6 +373,23 @@ impl ClusterTree {
         &self.surfaces[n.first_surface as usize..(n.first_surface + n.num_surfaces) as usize]
     }
 
+    /// Calls `f` on the surfaces of every node whose box meets the box `lo..hi` (a superset
+    /// of the surfaces whose own boxes meet it) until `f` returns true; true when it did.
+    pub fn any_surface_near(&self, lo: Vec3, hi: Vec3, mut f: impl FnMut(u32) -> bool) -> bool {
+        let mut stack = vec![0u32];
+        while let Some(node) = stack.pop() {
+            let nd = &self.nodes[node as usize];
+            if nd.bbox.max.cmplt(lo).any() || nd.bbox.min.cmpgt(hi).any() {
+                continue;
+            }
+            if self.node_surfaces(node).iter().any(|&j| f(j)) {
+                return true;
+            }
+            stack.extend(nd.children());
+        }
+        false
+    }
+
     /// Bytes used by the tree's arrays.
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<ClusterNode>()

@@ -5,6 +5,7 @@
 
 use super::lookup::SolutionLookup;
 use super::{Counts, Gatherer};
+use crate::facing::Facing;
 use crate::sample::{alias_pick, alias_table, power_heuristic};
 use glam::Vec3;
 use hirad_accel::ray::RayCaster;
@@ -38,6 +39,7 @@ impl Bright {
         sol: &SolutionLookup,
         scene: &Scene,
         caster: &RayCaster,
+        facing: &Facing,
         factor: f32,
     ) -> Option<Bright> {
         // Per half, per triangle: (area, mean reflected radiosity B − E).
@@ -52,7 +54,9 @@ impl Bright {
                         let n = m.scene.normals[t];
                         let c = m.scene.tri_centroid(t);
                         let o = c + n * sol.delta;
-                        let emitted = match caster.closest(o, -n, 0.0, 2.0 * sol.delta) {
+                        let hit = caster.closest(o, -n, 0.0, 2.0 * sol.delta);
+                        let hit = hit.map(|h| facing.resolve(scene, caster, (o, -n), h));
+                        let emitted = match hit {
                             Some(h) if scene.normals[h.tri as usize].dot(n) > 0.0 => {
                                 scene.material_of(h.tri as usize).emission * PI
                             }
@@ -145,7 +149,7 @@ impl Gatherer<'_> {
         }
         // The first surface towards the sample must be the sample's own (its side, emission).
         cnt.shadow += 1;
-        let Some(h) = self.caster.closest(x, to, 0.0, 1.0 + 1e-3) else {
+        let Some(h) = self.closest(x, to, 1.0 + 1e-3) else {
             return Vec3::ZERO;
         };
         if h.t < 1.0 - 1e-3 {

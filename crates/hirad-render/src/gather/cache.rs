@@ -179,7 +179,7 @@ fn point(
     let scene = g.scene;
     let d = frame.direction(sx, sy).normalize();
     cnt.camera += 1;
-    let h = g.caster.closest(frame.eye, d, 0.0, f32::INFINITY)?;
+    let h = g.closest(frame.eye, d, f32::INFINITY)?;
     let tri = h.tri as usize;
     let ng = scene.normals[tri];
     let front = ng.dot(d) < 0.0;
