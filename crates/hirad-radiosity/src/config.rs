@@ -82,7 +82,8 @@ pub struct SolverConfig {
     /// Levels of 4-way subdivision allowed below the minimum element area for a surface
     /// receiver whose link the oracle would still refine and whose transfer varies across it
     /// by more than ε: its shadow rays disagree (a shadow boundary) or its unoccluded kernel
-    /// varies (a source close beside it).
+    /// varies (a source close beside it). Beside a close surface source such a receiver goes
+    /// one level further while it is wider than its distance to the source.
     pub shadow_levels: u32,
     /// Shadow rays per link (stratified, jittered).
     pub shadow_rays: u32,

@@ -178,8 +178,12 @@ fn a_lamp_close_under_a_ceiling_lights_each_leaf_as_the_analytic_form_factor() {
     let scene = quads_scene(&quads, materials());
     let tree = tree_by_object(&scene);
     let lamp = lamp.map(|p| p.as_dvec3());
-    // At the minimum area (2 leaves), and with the leaves beside the lamp split further.
-    for (levels, n) in [(0, 2), (2, 32)] {
+    // Every leaf here is wider than its distance to the lamp (its area above 0.08² m²), so
+    // each goes one level below the shadow levels' area, and no further: without shadow
+    // levels the two triangles at the minimum area split once (8 leaves of 0.125 m², below a
+    // quarter of 0.6); with two, the 32 leaves split once more (128 of 0.0078 m²). Without
+    // that rule: 2 and 32.
+    for (levels, n) in [(0, 8), (2, 128)] {
         let cfg = SolverConfig {
             eps: Some(1e-9),
             min_area: Some(0.6),

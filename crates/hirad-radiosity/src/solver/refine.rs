@@ -7,7 +7,8 @@
 //! Resolution: both ends of a link at the minimum element area while the oracle still asks
 //! for refinement make the link unresolved; its near-field kernel integrates more finely, and
 //! where its transfer varies across a surface receiver (a shadow boundary, a close source) the
-//! receiver splits up to `shadow_levels` further levels. A subdivided source whose children's
+//! receiver splits up to `shadow_levels` further levels, and one more beside a close surface
+//! source while it is wider than its distance to it. A subdivided source whose children's
 //! radiosity differs by more than the oracle allows hands out the radiosity of the leaves its
 //! samples land on.
 //!
@@ -34,7 +35,7 @@ use super::budget::Growth;
 use super::gather::Entry;
 use super::{Solver, STRADDLES, STRADDLE_DECIDED};
 use crate::config::{Oracle, VisibilityMode};
-use crate::element::{Elements, Kind};
+use crate::element::{Element, Elements, Kind};
 use crate::formfactor::KernelCtx;
 use crate::link::{Deposit, Kept, Link, LinkSet, Sample, NO_SAMPLES};
 use crate::oracle::{self, Action};
@@ -397,6 +398,24 @@ impl Solver<'_> {
         }
     }
 
+    /// Receiver `r` below the shadow levels' area, beside surface source `s` and wider than
+    /// its distance to it (`A_r > d²`, `d` a lower bound: the larger of the distance from
+    /// `r`'s centroid to `s`'s plane and to its bounding sphere), above a quarter of that
+    /// area (one more level at most, a cost bound).
+    fn beside_close_source(&self, r: &Element, s: &Element) -> bool {
+        if s.kind != Kind::Surface || r.area as f64 <= self.shadow_min_area / 4.0 {
+            return false;
+        }
+        let plane = s.normal.dot(r.centroid - s.verts[0]).abs();
+        let radius = s
+            .verts
+            .iter()
+            .map(|v| v.distance(s.centroid))
+            .fold(0.0, f32::max);
+        let d = plane.max(r.centroid.distance(s.centroid) - radius) as f64;
+        r.area as f64 > d * d
+    }
+
     pub(super) fn ctx(&self) -> KernelCtx<'_> {
         KernelCtx {
             elems: &self.el,
@@ -576,10 +595,15 @@ impl Solver<'_> {
             // splitting on the rays' outcome would bias the kept links (those whose rays all
             // missed the source would stay, those that saw it would be drawn again), so a kept
             // link that could have split takes a kernel from independent rays; so does one
-            // kept on a straddling receiver because its rays agreed.
+            // kept on a straddling receiver because its rays agreed. Beside a close surface
+            // source the receiver goes on while it is wider than its distance to the source,
+            // the scale on which the kernel varies ([`Solver::beside_close_source`]).
             let mut redraw = false;
             if unresolved && r.kind == Kind::Surface && !again {
-                if let Some(a) = oracle::choose_split(r, s, self.shadow_min_area) {
+                let shadow = oracle::choose_split(r, s, self.shadow_min_area);
+                let split =
+                    shadow.or_else(|| self.beside_close_source(r, s).then_some(Action::SplitRecv));
+                if let Some(a) = split {
                     let varies = || {
                         let (fmin, fmax) = spread.unwrap_or_else(|| ctx.spread(ri, sj));
                         oracle::wants_refine(
@@ -590,7 +614,7 @@ impl Solver<'_> {
                             r.rho.as_dvec3(),
                         )
                     };
-                    if ev.mixed || varies() {
+                    if (ev.mixed && shadow.is_some()) || varies() {
                         return (a, *l, rays, None);
                     }
                     redraw = true;
