@@ -617,7 +617,8 @@ impl Solver<'_> {
                     if (ev.mixed && shadow.is_some()) || varies() {
                         return (a, *l, rays, None);
                     }
-                    redraw = true;
+                    // Beside a close source the choice did not read the rays.
+                    redraw = shadow.is_some();
                 }
             }
             if straddles && !again {
