@@ -88,13 +88,10 @@ pub fn sample_triangle_solid_angle(
         for (d, p) in dirs.iter_mut().zip(&c[..m]) {
             *d = (*p - xd).normalize_or_zero();
         }
-        // Solid angles of the fan's triangles (Van Oosterom and Strackee).
+        // Solid angles of the fan's triangles.
         let mut omegas = [0.0f64; 14];
         for i in 1..m - 1 {
-            let (a, b, d) = (dirs[0], dirs[i], dirs[i + 1]);
-            let num = a.dot(b.cross(d)).abs();
-            let den = 1.0 + a.dot(b) + b.dot(d) + d.dot(a);
-            omegas[i - 1] = 2.0 * num.atan2(den);
+            omegas[i - 1] = solid_angle([dirs[0], dirs[i], dirs[i + 1]]);
         }
         let omegas = &omegas[..m - 2];
         let total: f64 = omegas.iter().sum();
@@ -168,6 +165,15 @@ fn sample_cosine_spherical_triangle(
     Some((w, omega / pdf))
 }
 
+/// Solid angle of the spherical triangle of unit vectors `[a, b, c]` (Van Oosterom and
+/// Strackee).
+fn solid_angle([a, b, c]: [DVec3; 3]) -> f64 {
+    2.0 * a
+        .dot(b.cross(c))
+        .abs()
+        .atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a))
+}
+
 /// Unit direction in the spherical triangle of unit vectors `[a, b, c]`, uniform in solid
 /// angle, from two uniform numbers in [0, 1) (Arvo, "Stratified sampling of spherical
 /// triangles", SIGGRAPH 1995), with the triangle's solid angle. `None` for a degenerate
@@ -180,11 +186,7 @@ fn sample_spherical_triangle([a, b, c]: [DVec3; 3], u1: f64, u2: f64) -> Option<
     let (nab, nca) = (nab.normalize(), nca.normalize());
     // The angle α at a between the great circles through (a, b) and (a, c).
     let (cos_alpha, sin_alpha) = (-nab.dot(nca), nab.cross(nca).length());
-    // The solid angle (Van Oosterom and Strackee).
-    let area = 2.0
-        * a.dot(b.cross(c))
-            .abs()
-            .atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
+    let area = solid_angle([a, b, c]);
     if area.is_nan() || area <= 0.0 {
         return None;
     }
