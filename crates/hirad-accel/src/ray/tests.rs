@@ -187,6 +187,53 @@ fn layout_is_depth_first_with_inner_surfaces() {
 }
 
 #[test]
+fn occlusion_visits_a_wall_before_clusters_of_small_triangles() {
+    // Root children in tree order: a wall (two triangles filling x = 10, |y|, |z| ≤ 5) and two
+    // leaves of sixteen small triangles each (x in [2, 2.75] and [5, 5.75], |y|, |z| in [0.5,
+    // 0.9]), all crossed by a ray along x that passes between the small triangles and hits the
+    // wall. Occlusion visits the highest lane first: without the order it would test both
+    // leaves (32 triangles) before the wall, which blocks the ray with 2.
+    let small = |x0: f32, k: usize| {
+        let (x, sg) = (x0 + 0.05 * k as f32, if k % 2 == 0 { 1.0 } else { -1.0 });
+        [
+            Vec3::new(x, 0.5 * sg, 0.5 * sg),
+            Vec3::new(x, 0.9 * sg, 0.5 * sg),
+            Vec3::new(x, 0.5 * sg, 0.9 * sg),
+        ]
+    };
+    let s = tri_scene("wall", 34, |i| match i {
+        0 => [Vec3::new(10.0, -5.0, -5.0), Vec3::new(10.0, 5.0, -5.0), Vec3::new(10.0, 5.0, 5.0)],
+        1 => [Vec3::new(10.0, -5.0, -5.0), Vec3::new(10.0, 5.0, 5.0), Vec3::new(10.0, -5.0, 5.0)],
+        i if i < 18 => small(2.0, i - 2),
+        i => small(5.0, i - 18),
+    });
+    let mut b = BuildTree::default();
+    let leaf = |b: &mut BuildTree, ids: std::ops::Range<u32>| {
+        let mut bb = Aabb::EMPTY;
+        ids.clone().for_each(|i| bb.grow_box(&s.tri_bbox(i as usize)));
+        b.push(BuildNode {
+            bbox: bb,
+            children: vec![],
+            surfaces: ids.collect(),
+        })
+    };
+    let kids = vec![leaf(&mut b, 0..2), leaf(&mut b, 2..18), leaf(&mut b, 18..34)];
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: vec![],
+    });
+    let t = ClusterTree::from_build(b, 34, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let mut st = RayStats::default();
+    let o = Vec3::new(0.0, 0.1, -0.2);
+    assert!(rc.occluded_stats(o, Vec3::X, 0.0, 20.0, &mut st));
+    assert_eq!((st.nodes, st.tris), (2, 2));
+    assert!(!rc.occluded(o, Vec3::X, 0.0, 9.0));
+    assert!(rc.occluded_brute(o, Vec3::X, 0.0, 20.0));
+}
+
+#[test]
 fn a_sparse_run_is_visited_in_distance_order() {
     // A root holding 99 small triangles spread along a row (a random line through their box
     // crosses 0.25 of them, 0.0025 per triangle tested) and a leaf child holding the last
