@@ -266,7 +266,9 @@ struct Entry {
 /// (`watertight::hits4_avx`, the scalar test's operations). An occlusion
 /// query takes the hit children of a node in lane order, not by distance (as Embree's
 /// occlusion rays do: the sort cost more than the visits it saved, `docs/perf-log.md`
-/// 2026-12-05 (23)); the last is visited next without going through the stack; pieces of a
+/// 2026-12-05 (23)), the layout having ordered each node's lanes by their chance of blocking a
+/// ray per cost (`occlusion_order` in `ray/layout/build.rs`); the last is visited next without
+/// going through the stack; pieces of a
 /// node's run marked to be visited first are taken before the other lanes. Closest-hit
 /// queries push every hit child, nearest on top, and skip entries farther than the current
 /// hit. Batch occlusion ([`RayCaster::occluded_stream`], used by

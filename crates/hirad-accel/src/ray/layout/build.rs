@@ -410,7 +410,7 @@ fn collapse(
 /// `c` = 1 + log2(triangles below) (a hierarchy's search cost). Testing in decreasing `p / c`
 /// minimises the expected cost of a sequential search; Embree sorts a node's children for
 /// shadow rays too, by primitive count. Results do not change, only the visits
-/// (`docs/perf-log.md` 2026-12-06 (34)). Ties keep the tree's order.
+/// (`docs/perf-log.md` 2026-12-06 (44)). Ties keep the tree's order.
 #[allow(clippy::too_many_arguments)]
 fn occlusion_order<K: Iterator<Item = u32>>(
     scene: &Scene,
