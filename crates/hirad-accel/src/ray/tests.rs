@@ -194,7 +194,10 @@ fn occlusion_visits_a_wall_before_clusters_of_small_triangles() {
     // wall. Occlusion visits the highest lane first: without the order it would test both
     // leaves (32 triangles) before the wall, which blocks the ray with 2.
     let small = |x0: f32, k: usize| {
-        let (x, sg) = (x0 + 0.05 * k as f32, if k % 2 == 0 { 1.0 } else { -1.0 });
+        let (x, sg) = (
+            x0 + 0.05 * k as f32,
+            if k.is_multiple_of(2) { 1.0 } else { -1.0 },
+        );
         [
             Vec3::new(x, 0.5 * sg, 0.5 * sg),
             Vec3::new(x, 0.9 * sg, 0.5 * sg),
@@ -202,22 +205,35 @@ fn occlusion_visits_a_wall_before_clusters_of_small_triangles() {
         ]
     };
     let s = tri_scene("wall", 34, |i| match i {
-        0 => [Vec3::new(10.0, -5.0, -5.0), Vec3::new(10.0, 5.0, -5.0), Vec3::new(10.0, 5.0, 5.0)],
-        1 => [Vec3::new(10.0, -5.0, -5.0), Vec3::new(10.0, 5.0, 5.0), Vec3::new(10.0, -5.0, 5.0)],
+        0 => [
+            Vec3::new(10.0, -5.0, -5.0),
+            Vec3::new(10.0, 5.0, -5.0),
+            Vec3::new(10.0, 5.0, 5.0),
+        ],
+        1 => [
+            Vec3::new(10.0, -5.0, -5.0),
+            Vec3::new(10.0, 5.0, 5.0),
+            Vec3::new(10.0, -5.0, 5.0),
+        ],
         i if i < 18 => small(2.0, i - 2),
         i => small(5.0, i - 18),
     });
     let mut b = BuildTree::default();
     let leaf = |b: &mut BuildTree, ids: std::ops::Range<u32>| {
         let mut bb = Aabb::EMPTY;
-        ids.clone().for_each(|i| bb.grow_box(&s.tri_bbox(i as usize)));
+        ids.clone()
+            .for_each(|i| bb.grow_box(&s.tri_bbox(i as usize)));
         b.push(BuildNode {
             bbox: bb,
             children: vec![],
             surfaces: ids.collect(),
         })
     };
-    let kids = vec![leaf(&mut b, 0..2), leaf(&mut b, 2..18), leaf(&mut b, 18..34)];
+    let kids = vec![
+        leaf(&mut b, 0..2),
+        leaf(&mut b, 2..18),
+        leaf(&mut b, 18..34),
+    ];
     b.root = b.push(BuildNode {
         bbox: s.bbox,
         children: kids,

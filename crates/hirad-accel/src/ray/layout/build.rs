@@ -140,7 +140,9 @@ impl Layout {
                 .map(|k| k.iter().copied().map(Lane::Node).collect())
                 .collect()
         };
-        occlusion_order(scene, &mut lanes, &order, &kids, &own, &runs, &bound, &run_bound);
+        occlusion_order(
+            scene, &mut lanes, &order, &kids, &own, &runs, &bound, &run_bound,
+        );
         let mut absorbed = vec![false; n];
         for l in &lanes {
             for lane in l {
@@ -453,7 +455,11 @@ fn occlusion_order<K: Iterator<Item = u32>>(
             }
         };
         let sa = b.surface_area() as f64;
-        let p = if sa > 0.0 { (2.0 * a / sa).min(1.0) } else { 1.0 };
+        let p = if sa > 0.0 {
+            (2.0 * a / sa).min(1.0)
+        } else {
+            1.0
+        };
         p / (1.0 + (k.max(1) as f64).log2())
     };
     for l in lanes.iter_mut().filter(|l| l.len() > 1) {
