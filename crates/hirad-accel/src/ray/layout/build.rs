@@ -424,14 +424,15 @@ fn occlusion_order<K: Iterator<Item = u32>>(
     bound: &[Aabb],
     run_bound: &[Aabb],
 ) {
-    let area = |ids: &[u32]| -> f64 {
-        ids.iter()
-            .map(|&s| {
-                let [a, b, c] = scene.tri_vertices(s as usize);
-                triangle_area_f64(a, b, c)
-            })
-            .sum()
-    };
+    use rayon::prelude::*;
+    let tri_area: Vec<f64> = (0..scene.num_triangles())
+        .into_par_iter()
+        .map(|s| {
+            let [a, b, c] = scene.tri_vertices(s);
+            triangle_area_f64(a, b, c)
+        })
+        .collect();
+    let area = |ids: &[u32]| -> f64 { ids.iter().map(|&s| tri_area[s as usize]).sum() };
     // Triangles and their area below each node.
     let n = own.len();
     let mut below = vec![(0usize, 0f64); n];
