@@ -463,12 +463,9 @@ fn occlusion_order<K: Iterator<Item = u32>>(
         };
         p / (1.0 + (k.max(1) as f64).log2())
     };
-    for l in lanes.iter_mut().filter(|l| l.len() > 1) {
-        let mut keyed: Vec<(f64, Lane)> = l.iter().map(|x| (key(x), *x)).collect();
-        keyed.sort_by(|x, y| x.0.total_cmp(&y.0));
-        for (dst, (_, x)) in l.iter_mut().zip(keyed) {
-            *dst = x;
-        }
+    // Keys are finite and non-negative, so their bits sort as they do (a stable sort).
+    for l in lanes.iter_mut() {
+        l.sort_by_cached_key(|x| key(x).to_bits());
     }
 }
 
