@@ -39,6 +39,7 @@ use hirad_scene::export::ColoredMesh;
 use hirad_scene::Scene;
 use lookup::SPLIT;
 use serde::{Deserialize, Serialize};
+use sobol_burley::parts::{hash_int4, owen_scramble_int4_rev, sobol_int4_rev, Int4};
 use std::f32::consts::PI;
 use std::sync::atomic::AtomicBool;
 
@@ -129,13 +130,13 @@ pub struct GatherStats {
 
 /// The final gather over a scene, its ray caster and a solution.
 ///
-/// Per pixel, `rays` samples, each: a camera ray jittered in the pixel (stratified) to the first
-/// hit in the scene; the emitted radiance there when the camera sees an emitter's front; direct
-/// light by the path tracer's emitter sampling (a triangle chosen by power, a point on it, both
-/// stratified) with an exact shadow ray, and the sun's shadow ray; indirect light from one
-/// cosine-weighted ray (the samples' directions stratified over the hemisphere) whose hit reads
-/// the solution's radiosity minus the emitted exitance there (direct light is not counted
-/// twice), times ρ/π. Emission that a gather ray hits is combined with the emitter sample by
+/// Per pixel, `rays` samples, each: a camera ray jittered in the pixel to the first hit in the
+/// scene; the emitted radiance there when the camera sees an emitter's front; direct light by
+/// the path tracer's emitter sampling (a triangle chosen by power, a point on it) with an exact
+/// shadow ray, and the sun's shadow ray; indirect light from one cosine-weighted ray whose hit
+/// reads the solution's radiosity minus the emitted exitance there (direct light is not
+/// counted twice), times ρ/π. The samples' random numbers are Owen-scrambled Sobol points
+/// ([`PixelSamples`]). Emission that a gather ray hits is combined with the emitter sample by
 /// multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
 /// close to the shading point (corners) from spiking. A gather ray whose hit lies within
 /// [`GatherOptions::near`] element sizes is shaded there by one more such bounce instead. Rays
@@ -181,10 +182,98 @@ impl Counts {
     }
 }
 
+/// The random numbers of the samples of one pixel: three Owen-scrambled Sobol point sets
+/// (the first `n` points of the 4D sequence, their values scrambled by a hash per pixel and
+/// set: Burley 2020, `sobol_burley`), each stratified jointly over the dimensions of one
+/// integrand: the position in the pixel with the gather ray's direction, the emitter's choice
+/// with the point on it, the bright element's choice with the point on it. The second and
+/// third sets are visited in random orders, which decorrelates the sets. Uniform numbers
+/// beyond 2¹⁶ samples (the sequences' length).
+struct PixelSamples {
+    /// Sequence index of sample `k` in the second and third sets.
+    order: [Vec<u32>; 2],
+    /// Per set, the four lanes' scramble keys.
+    scramble: [Int4; 3],
+    /// Whether the third set (bright elements) is drawn; its numbers are 0 otherwise.
+    bright: bool,
+    /// Whether the sets are Sobol points (at most 2¹⁶ samples).
+    sobol: bool,
+}
+
+/// One sample of [`PixelSamples`].
+struct PixelSample {
+    jx: f32,
+    jy: f32,
+    ud: (f32, f32),
+    upick: f64,
+    ul: (f32, f32),
+    ub: (f64, (f32, f32)),
+}
+
+impl PixelSamples {
+    /// The point sets of `n` samples, drawn from `rng`.
+    fn new(n: u32, bright: bool, rng: &mut SplitMix64) -> Self {
+        let sobol = n <= 1 << 16;
+        let order = [true, bright].map(|drawn| {
+            let mut p: Vec<u32> = Vec::new();
+            if drawn && sobol {
+                p.extend(0..n);
+                shuffle(&mut p, rng);
+            }
+            p
+        });
+        let scramble = [(); 3].map(|_| {
+            let s = rng.next_u64() as u32;
+            // Per-lane keys as `sobol_burley::sample_4d` forms them from a seed.
+            let key = [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].map(|d: u32| d ^ s);
+            hash_int4(key.into())
+        });
+        PixelSamples {
+            order,
+            scramble,
+            bright,
+            sobol,
+        }
+    }
+
+    /// Sample `k` (< `n`).
+    #[inline]
+    fn get(&self, k: u32, rng: &mut SplitMix64) -> PixelSample {
+        let point = |s: usize, i: u32| -> [u32; 4] {
+            owen_scramble_int4_rev(sobol_int4_rev(i.reverse_bits(), 0), self.scramble[s])
+                .reverse_bits()
+                .into()
+        };
+        let [a, b, c] = if self.sobol {
+            let c = if self.bright {
+                point(2, self.order[1][k as usize])
+            } else {
+                [0; 4]
+            };
+            [point(0, k), point(1, self.order[0][k as usize]), c]
+        } else {
+            [(); 3].map(|_| [(); 4].map(|_| rng.next_u64() as u32))
+        };
+        // Coordinates from the top 24 bits (exact in f32, below 1); the choices take all 32,
+        // since they split their number among many triangles.
+        let f = |x: u32| (x >> 8) as f32 * (1.0 / 16_777_216.0);
+        let pick = |x: u32| x as f64 * (1.0 / 4_294_967_296.0);
+        PixelSample {
+            jx: f(a[0]),
+            jy: f(a[1]),
+            ud: (f(a[2]), f(a[3])),
+            upick: pick(b[2]),
+            ul: (f(b[0]), f(b[1])),
+            ub: (pick(c[2]), (f(c[0]), f(c[1]))),
+        }
+    }
+}
+
 /// Shuffle `p` in place (Fisher–Yates, from the last entry down).
 fn shuffle(p: &mut [u32], rng: &mut SplitMix64) {
     for i in (1..p.len()).rev() {
-        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        // Multiply-shift (Lemire): a bias below 2⁻³² · len, without a division.
+        let j = (((rng.next_u64() >> 32) * (i as u64 + 1)) >> 32) as usize;
         p.swap(i, j);
     }
 }
@@ -465,35 +554,18 @@ impl<'a> Gatherer<'a> {
         cnt: &mut Counts,
     ) -> (Vec3, Spread) {
         let scene = self.scene;
-        let a = ((n as f64).sqrt() as u32).max(1);
-        let b = n / a;
-        // Independent shuffles of the strata of the pixel jitter, of the emitter choice and of
-        // the point on the emitter.
-        let mut perm_px: Vec<u32> = (0..n).collect();
-        let mut perm_l: Vec<u32> = (0..n).collect();
-        let mut perm_pick: Vec<u32> = (0..n).collect();
-        let mut perm_bpick: Vec<u32> = (0..n).collect();
-        let mut perm_b: Vec<u32> = (0..n).collect();
-        for p in [
-            &mut perm_px,
-            &mut perm_l,
-            &mut perm_pick,
-            &mut perm_bpick,
-            &mut perm_b,
-        ] {
-            shuffle(p, &mut rng);
-        }
+        let samples = PixelSamples::new(n, self.bright.is_some(), &mut rng);
         let (mut sum, mut sum_y, mut sum_y2) = (DVec3::ZERO, 0.0f64, 0.0f64);
         for k in 0..n {
-            let (jx, jy) = stratum(perm_px[k as usize], a, b, &mut rng);
+            let PixelSample {
+                jx,
+                jy,
+                ud,
+                upick,
+                ul,
+                ub,
+            } = samples.get(k, &mut rng);
             let d = frame.direction(x as f32 + jx, y as f32 + jy).normalize();
-            let ul = stratum(perm_l[k as usize], a, b, &mut rng);
-            let upick = (perm_pick[k as usize] as f64 + rng.next_f64()) / n as f64;
-            let ud = stratum(k, a, b, &mut rng);
-            let ub = (
-                (perm_bpick[k as usize] as f64 + rng.next_f64()) / n as f64,
-                stratum(perm_b[k as usize], a, b, &mut rng),
-            );
             cnt.camera += 1;
             let Some(h) = self.closest(frame.eye, d, f32::INFINITY) else {
                 continue;
@@ -680,4 +752,66 @@ pub fn render_gather(
 ) -> Result<(Image, GatherStats)> {
     let sol = SolutionLookup::new(mesh, scene, caster, opts.lookup)?;
     Gatherer::new(scene, caster, &sol, opts).render(view, progress, cancel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whether the points `p` (of a power-of-two count `n = 2^m`) form a (t, m, 2)-net: every
+    /// box `[i/2^a, (i+1)/2^a) × [j/2^b, (j+1)/2^b)` with `a + b = m − t` holds exactly `2^t`.
+    fn is_net(p: &[(f32, f32)], t: u32) -> bool {
+        let m = p.len().trailing_zeros() - t;
+        (0..=m).all(|a| {
+            let b = m - a;
+            let mut count = vec![0u32; 1 << m];
+            for &(x, y) in p {
+                let i = (x * (1u32 << a) as f32) as usize;
+                let j = (y * (1u32 << b) as f32) as usize;
+                count[(i << b) | j] += 1;
+            }
+            count.iter().all(|&c| c == 1 << t)
+        })
+    }
+
+    #[test]
+    fn pixel_samples_are_stratified_per_integrand() {
+        let mut rng = SplitMix64::new(5);
+        for n in [16u32, 64, 256] {
+            let s = PixelSamples::new(n, true, &mut rng);
+            let all: Vec<PixelSample> = (0..n).map(|k| s.get(k, &mut rng)).collect();
+            let pixel: Vec<_> = all.iter().map(|p| (p.jx, p.jy)).collect();
+            let gather: Vec<_> = all.iter().map(|p| p.ud).collect();
+            let light: Vec<_> = all.iter().map(|p| p.ul).collect();
+            let bright: Vec<_> = all.iter().map(|p| p.ub.1).collect();
+            for (name, set, t) in [
+                ("pixel", &pixel, 0),
+                ("gather", &gather, 1),
+                ("light", &light, 0),
+                ("bright", &bright, 0),
+            ] {
+                assert!(
+                    is_net(set, t),
+                    "{name} points of {n} samples: not a ({t}, m, 2)-net"
+                );
+            }
+            // The emitter's choice: one sample in each of the n strata alone, and stratified
+            // jointly with the point on the emitter (a (1, m, 2)-net with its first coordinate).
+            let mut strata: Vec<u32> = all.iter().map(|p| (p.upick * n as f64) as u32).collect();
+            strata.sort_unstable();
+            assert!(
+                strata.iter().copied().eq(0..n),
+                "light choice of {n} samples"
+            );
+            let pick: Vec<_> = all.iter().map(|p| (p.upick as f32, p.ul.0)).collect();
+            assert!(is_net(&pick, 1), "light choice and point of {n} samples");
+            // The sets are decorrelated: the pixel and the light points are not the same
+            // sequence in the same order.
+            assert!(pixel.iter().zip(&light).any(|(a, b)| a != b));
+        }
+        // Beyond the sequences' length: uniform numbers in [0, 1).
+        let s = PixelSamples::new((1 << 16) + 1, false, &mut rng);
+        let p = s.get(0, &mut rng);
+        assert!((0.0..1.0).contains(&p.jx) && (0.0..1.0).contains(&p.upick));
+    }
 }
