@@ -135,8 +135,8 @@ pub struct GatherStats {
 /// the path tracer's emitter sampling (a triangle chosen by power, a point on it) with an exact
 /// shadow ray, and the sun's shadow ray; indirect light from one cosine-weighted ray whose hit
 /// reads the solution's radiosity minus the emitted exitance there (direct light is not
-/// counted twice), times ρ/π. The samples' random numbers are Owen-scrambled Sobol points
-/// ([`PixelSamples`]). Emission that a gather ray hits is combined with the emitter sample by
+/// counted twice), times ρ/π. The camera position, gather direction, emitter and bright
+/// samples take their numbers from Owen-scrambled Sobol sets (`PixelSamples`). Emission that a gather ray hits is combined with the emitter sample by
 /// multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
 /// close to the shading point (corners) from spiking. A gather ray whose hit lies within
 /// [`GatherOptions::near`] element sizes is shaded there by one more such bounce instead. Rays
@@ -194,7 +194,7 @@ struct PixelSamples {
     order: [Vec<u32>; 2],
     /// Per set, the four lanes' scramble keys.
     scramble: [Int4; 3],
-    /// Whether the third set (bright elements) is drawn; its numbers are 0 otherwise.
+    /// Whether the third set (bright elements) is drawn (its numbers are not used otherwise).
     bright: bool,
     /// Whether the sets are Sobol points (at most 2¹⁶ samples).
     sobol: bool,
@@ -803,11 +803,18 @@ mod tests {
                 strata.iter().copied().eq(0..n),
                 "light choice of {n} samples"
             );
-            let pick: Vec<_> = all.iter().map(|p| (p.upick as f32, p.ul.0)).collect();
+            // (Rounded down to 24 bits, so that the f32 stays below 1.)
+            let down = |u: f64| ((u * 16_777_216.0).floor() / 16_777_216.0) as f32;
+            let pick: Vec<_> = all.iter().map(|p| (down(p.upick), p.ul.0)).collect();
             assert!(is_net(&pick, 1), "light choice and point of {n} samples");
-            // The sets are decorrelated: the pixel and the light points are not the same
-            // sequence in the same order.
-            assert!(pixel.iter().zip(&light).any(|(a, b)| a != b));
+            // The gather direction is not the pixel position again, and the second and third
+            // sets are visited in random orders (permutations, not the sequence's).
+            assert!(pixel.iter().zip(&gather).any(|(a, b)| a != b));
+            for order in &s.order {
+                let mut sorted = order.clone();
+                sorted.sort_unstable();
+                assert!(sorted.iter().copied().eq(0..n) && !order.iter().copied().eq(0..n));
+            }
         }
         // Beyond the sequences' length: uniform numbers in [0, 1).
         let s = PixelSamples::new((1 << 16) + 1, false, &mut rng);
