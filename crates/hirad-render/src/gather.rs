@@ -136,9 +136,10 @@ pub struct GatherStats {
 /// shadow ray, and the sun's shadow ray; indirect light from one cosine-weighted ray whose hit
 /// reads the solution's radiosity minus the emitted exitance there (direct light is not
 /// counted twice), times ρ/π. The camera position, gather direction, emitter and bright
-/// samples take their numbers from Owen-scrambled Sobol sets (`PixelSamples`). Emission that a gather ray hits is combined with the emitter sample by
-/// multiple importance sampling (power heuristic, as the path tracer), which keeps emitters
-/// close to the shading point (corners) from spiking. A gather ray whose hit lies within
+/// samples take their numbers from Owen-scrambled Sobol sets (`PixelSamples`). Emission that a
+/// gather ray hits is combined with the emitter sample by multiple importance sampling (power
+/// heuristic, as the path tracer), which keeps emitters close to the shading point (corners)
+/// from spiking. A gather ray whose hit lies within
 /// [`GatherOptions::near`] element sizes is shaded there by one more such bounce instead. Rays
 /// that leave the scene upwards see the sky. One-sided surfaces absorb at their back (the path
 /// tracer's convention) unless the solution is two-sided.
@@ -184,11 +185,11 @@ impl Counts {
 
 /// The random numbers of the samples of one pixel: three Owen-scrambled Sobol point sets
 /// (the first `n` points of the 4D sequence, their values scrambled by a hash per pixel and
-/// set: Burley 2020, `sobol_burley`), each stratified jointly over the dimensions of one
-/// integrand: the position in the pixel with the gather ray's direction, the emitter's choice
-/// with the point on it, the bright element's choice with the point on it. The second and
-/// third sets are visited in random orders, which decorrelates the sets. Uniform numbers
-/// beyond 2¹⁶ samples (the sequences' length).
+/// set: Burley 2020, `sobol_burley`), each spread over the dimensions of one integrand
+/// together (nets of the sizes the test checks): the position in the pixel with the gather
+/// ray's direction, the emitter's choice with the point on it, the bright element's choice
+/// with the point on it. The second and third sets are visited in random orders, which
+/// decorrelates the sets. Uniform numbers beyond 2¹⁶ samples (the sequences' length).
 struct PixelSamples {
     /// Sequence index of sample `k` in the second and third sets.
     order: [Vec<u32>; 2],
