@@ -1,6 +1,8 @@
 //! The study's report (`experiments.md` §6): Markdown and HTML with the tables and plots of
-//! §1–5 and, for each of the paper's findings, what we measured and whether it was reproduced.
+//! §1–5 and, for each of the paper's findings, what we measured and whether it was reproduced;
+//! the sweeps read at fixed errors, and `objr`'s targets met or not when the study ran it.
 
+use super::reach;
 use super::records::{ClusterRecord, NoiseRecord, RayRecord, RunMeta, RunRecord, SolveRecord};
 use super::score::{rises_above, Monotonicity};
 use hirad_accel::cluster::Strategy;
@@ -133,6 +135,132 @@ pub fn rises_above_noise(solves: &[SolveRecord], tol: f64) -> BTreeMap<Strategy,
 /// once and Kendall's τ is at least 0.8 (one noisy step out of a clear trend).
 pub fn is_monotone(m: &Monotonicity) -> bool {
     m.rises == 0 || (m.rises <= 1 && m.kendall_tau.is_some_and(|t| t >= 0.8))
+}
+
+/// Each strategy's sweep as `(solve seconds, error)` points.
+fn time_error(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
+    curves(solves)
+        .into_iter()
+        .map(|(s, v)| (s, v.iter().map(|r| (r.solve_s, r.error())).collect()))
+        .collect()
+}
+
+/// Errors at which the sweeps are compared ([`reach::levels`], four of them), and per strategy
+/// the seconds its sweep needs to reach each ([`reach::time_to`]; `None`: never reached).
+pub fn time_to_levels(solves: &[SolveRecord]) -> (Vec<f64>, BTreeMap<Strategy, Vec<Option<f64>>>) {
+    let te = time_error(solves);
+    let levels = reach::levels(te.values().map(Vec::as_slice), 4);
+    let times = te
+        .iter()
+        .map(|(&s, pts)| (s, levels.iter().map(|&e| reach::time_to(pts, e)).collect()))
+        .collect();
+    (levels, times)
+}
+
+/// One of `objr`'s targets, and whether this study met it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Target {
+    /// What `objr` should do.
+    pub target: String,
+    /// What this study measured.
+    pub measured: String,
+    /// `Some(true)` met, `Some(false)` not met, `None` not measured.
+    pub met: Option<bool>,
+}
+
+/// `objr`'s targets against the paper's strategies (issue "A clustering strategy that follows
+/// objects"): no rise of its error–ε curve above the references' own noise, each error reached
+/// in no more solve time than the fastest of the paper's strategies, a build of at most 3×
+/// PROXI's. Empty when the study did not run `objr`.
+pub fn objr_targets(d: &ReportData) -> Vec<Target> {
+    let objr = Strategy::Objr;
+    let has_solves = d.solves.iter().any(|r| r.strategy == objr);
+    let cl = |s| by(&d.clusters, s, |r| r.strategy);
+    if !has_solves && cl(objr).is_none() {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    if has_solves {
+        let (measured, met) = match reference_noise(d) {
+            Some(n) => {
+                let above = rises_above_noise(&d.solves, n);
+                let k = above.get(&objr).copied().unwrap_or(0);
+                let paper = above
+                    .iter()
+                    .filter(|(s, _)| s.is_paper())
+                    .map(|(s, c)| format!("{s} {c}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                (
+                    format!(
+                        "objr {k} rises above the references' own noise (ΔE*uv {n:.2}); the paper's strategies: {paper}"
+                    ),
+                    Some(k == 0),
+                )
+            }
+            None => ("the references' own noise was not measured".into(), None),
+        };
+        out.push(Target {
+            target: "objr's error–ε curve has no rise larger than the references' own noise".into(),
+            measured,
+            met,
+        });
+        let (levels, times) = time_to_levels(&d.solves);
+        let mut parts = Vec::new();
+        let mut met = None;
+        for (i, e) in levels.iter().enumerate() {
+            let best = times
+                .iter()
+                .filter(|(s, _)| s.is_paper())
+                .filter_map(|(&s, t)| t[i].map(|t| (s, t)))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let Some((bs, bt)) = best else { continue };
+            let ot = times.get(&objr).and_then(|t| t[i]);
+            let ok = ot.is_some_and(|t| t <= bt);
+            met = Some(met.unwrap_or(true) && ok);
+            let never = || {
+                let lowest = curves(&d.solves)
+                    .get(&objr)
+                    .and_then(|v| v.iter().map(|r| r.error()).min_by(f64::total_cmp));
+                lowest.map_or("never".into(), |l| format!("never (lowest {l:.2})"))
+            };
+            parts.push(format!(
+                "at {e:.2}: objr {}, {bs} {bt:.2} s",
+                ot.map_or_else(never, |t| format!("{t:.2} s"))
+            ));
+        }
+        out.push(Target {
+            target: "objr reaches each error in no more solve time than the fastest of the paper's strategies".into(),
+            measured: if parts.is_empty() {
+                "no error reached by a paper strategy".into()
+            } else {
+                parts.join("; ")
+            },
+            met,
+        });
+    }
+    let (measured, met) = match (cl(objr), cl(Strategy::Proxi)) {
+        (Some(o), Some(p)) => {
+            let r = o.build_ms / p.build_ms.max(1e-9);
+            (
+                format!(
+                    "objr {:.1} ms, {r:.2}× proxi's {:.1} ms",
+                    o.build_ms, p.build_ms
+                ),
+                Some(r <= 3.0),
+            )
+        }
+        _ => (
+            "not measured (no cluster statistics of objr and proxi)".into(),
+            None,
+        ),
+    };
+    out.push(Target {
+        target: "objr's build takes at most 3× PROXI's".into(),
+        measured,
+        met,
+    });
+    out
 }
 
 /// The paper's findings next to ours.
@@ -355,6 +483,14 @@ pub fn markdown(d: &ReportData) -> String {
             verdict(f.reproduced)
         );
     }
+    let targets = objr_targets(d);
+    if !targets.is_empty() {
+        let _ = writeln!(md, "\n## objr against its targets\n");
+        let _ = writeln!(md, "| target | measured | met |\n|---|---|---|");
+        for t in &targets {
+            let _ = writeln!(md, "| {} | {} | {} |", t.target, t.measured, verdict(t.met));
+        }
+    }
     let _ = writeln!(md, "\n## 1. Cluster statistics and build time\n");
     let proxi_ms = by(&d.clusters, Strategy::Proxi, |r| r.strategy).map(|r| r.build_ms);
     let _ = writeln!(
@@ -488,6 +624,28 @@ pub fn markdown(d: &ReportData) -> String {
         );
     }
     md.push('\n');
+    let (levels, times) = time_to_levels(&d.solves);
+    if !levels.is_empty() {
+        let _ = writeln!(
+            md,
+            "Seconds each sweep needs to reach an error (its solves in order of solve time, interpolated in log time between the two around the error; –: never reached), at errors from the lowest any sweep starts at to the lowest any reaches:\n"
+        );
+        let head: Vec<String> = levels.iter().map(|e| format!("ΔE*uv {e:.2}")).collect();
+        let _ = writeln!(
+            md,
+            "| strategy | {} |\n|---|{}",
+            head.join(" | "),
+            "---|".repeat(levels.len())
+        );
+        for (s, t) in &times {
+            let cells: Vec<String> = t
+                .iter()
+                .map(|t| t.map_or("–".into(), |t| format!("{t:.2}")))
+                .collect();
+            let _ = writeln!(md, "| {s} | {} |", cells.join(" | "));
+        }
+        md.push('\n');
+    }
     fig(&mut md, d, "time_error");
     fig(&mut md, d, "error_eps");
     if !d.volume.is_empty() {
@@ -544,7 +702,7 @@ pub fn markdown(d: &ReportData) -> String {
 
 /// The paper's findings across several studies (one per scene: a label, such as the study's
 /// directory, and its [`ReportData`] from [`super::run::collect`]): a table of verdicts, study by
-/// study, then what we measured.
+/// study (the paper's findings, then `objr`'s targets), then what we measured.
 pub fn cross_scene(studies: &[(String, ReportData)]) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# hirad studies: the paper's findings across scenes\n");
@@ -572,6 +730,22 @@ pub fn cross_scene(studies: &[(String, ReportData)]) -> String {
             .collect();
         let _ = writeln!(md, "| {paper} | {} |", cells.join(" | "));
     }
+    let targets: Vec<Vec<Target>> = studies.iter().map(|(_, d)| objr_targets(d)).collect();
+    let nt = targets.iter().map(Vec::len).max().unwrap_or(0);
+    let target_name = |i: usize| {
+        targets
+            .iter()
+            .find_map(|t| t.get(i))
+            .map(|t| t.target.clone())
+            .unwrap_or_default()
+    };
+    for i in 0..nt {
+        let cells: Vec<&str> = targets
+            .iter()
+            .map(|t| verdict(t.get(i).and_then(|t| t.met)))
+            .collect();
+        let _ = writeln!(md, "| target: {} | {} |", target_name(i), cells.join(" | "));
+    }
     let walls: Vec<String> = studies
         .iter()
         .map(|(_, d)| {
@@ -592,6 +766,15 @@ pub fn cross_scene(studies: &[(String, ReportData)]) -> String {
         for ((l, _), f) in studies.iter().zip(&all) {
             if let Some(f) = f.get(i) {
                 let _ = writeln!(md, "- {l}: {} — {}", f.ours, verdict(f.reproduced));
+            }
+        }
+        md.push('\n');
+    }
+    for i in 0..nt {
+        let _ = writeln!(md, "**target: {}**\n", target_name(i));
+        for ((l, _), t) in studies.iter().zip(&targets) {
+            if let Some(t) = t.get(i) {
+                let _ = writeln!(md, "- {l}: {} — {}", t.measured, verdict(t.met));
             }
         }
         md.push('\n');
@@ -727,5 +910,91 @@ mod tests {
         assert!(x.contains("| a (`office`) | b (`soup`) |"), "{x}");
         assert!(x.contains("(§4.4, Fig. 6) | yes | not measured |"), "{x}");
         assert_eq!(x.matches("\n| ").count(), 1 + 5 + 1, "{x}");
+    }
+
+    #[test]
+    fn objr_targets_compare_it_with_the_fastest_paper_strategy() {
+        // Times 1/ε: objr 1.25, 2.5, 5, 10 s; okdt 1.25 … 10 s and tf-oct 2.5 … 20 s.
+        let mut solves = Vec::new();
+        for (i, e) in [0.8, 0.4, 0.2, 0.1].into_iter().enumerate() {
+            solves.push(srec(Strategy::Objr, e, [8.0, 4.0, 2.0, 1.0][i]));
+            solves.push(srec(Strategy::Okdt, e, [8.0, 6.0, 4.0, 3.0][i]));
+            solves.push(srec(Strategy::TfOct, e / 2.0, [9.0, 4.0, 3.0, 2.5][i]));
+            // sah is not a paper strategy: faster than objr, it does not count.
+            solves.push(srec(Strategy::Sah, 2.0 * e, [4.0, 2.0, 1.0, 0.5][i]));
+        }
+        let mut d = ReportData {
+            solves,
+            clusters: vec![
+                crec(Strategy::Objr, 3.0, 25.0),
+                crec(Strategy::Proxi, 3.0, 10.0),
+            ],
+            ..Default::default()
+        };
+        let t = objr_targets(&d);
+        assert_eq!(t.len(), 3);
+        assert_eq!(t[0].met, None, "no noise measured");
+        // Levels from 4 (sah's first error) to 0.5 (sah's last).
+        let (levels, times) = time_to_levels(&d.solves);
+        assert_eq!(levels.len(), 4);
+        assert!((levels[0] - 4.0).abs() < 1e-12 && (levels[3] - 0.5).abs() < 1e-12);
+        // At 4: objr 2.5 s, okdt 5 s, tf-oct 5 s (its second solve).
+        assert!((times[&Strategy::Objr][0].unwrap() - 2.5).abs() < 1e-12);
+        assert!((times[&Strategy::Okdt][0].unwrap() - 5.0).abs() < 1e-12);
+        assert_eq!(times[&Strategy::Okdt][3], None);
+        assert_eq!(t[1].met, Some(true), "{:?}", t[1]);
+        assert!(
+            t[1].measured.starts_with("at 4.00: objr 2.50 s, "),
+            "{:?}",
+            t[1]
+        );
+        assert_eq!(t[2].met, Some(true), "{:?}", t[2]);
+        assert!(
+            t[2].measured.contains("2.50× proxi's 10.0 ms"),
+            "{:?}",
+            t[2]
+        );
+        // objr's solves 2.2× slower: the paper's strategies are first at 4.
+        for r in d.solves.iter_mut().filter(|r| r.strategy == Strategy::Objr) {
+            r.solve_s *= 2.2;
+        }
+        d.clusters[0].build_ms = 31.0;
+        let t = objr_targets(&d);
+        assert_eq!(t[1].met, Some(false), "{:?}", t[1]);
+        assert_eq!(t[2].met, Some(false), "{:?}", t[2]);
+        // A level objr never reaches, which okdt does: not met, and objr's lowest said.
+        let mut e = d.clone();
+        e.solves.retain(|r| r.strategy != Strategy::Sah);
+        for r in e.solves.iter_mut().filter(|r| r.strategy == Strategy::Objr) {
+            r.solve_s /= 2.2;
+            r.errors[0] = r.errors[0].max(3.5);
+        }
+        let t = objr_targets(&e);
+        assert_eq!(t[1].met, Some(false), "{:?}", t[1]);
+        assert!(
+            t[1].measured
+                .ends_with("at 2.50: objr never (lowest 3.50), tf-oct 20.00 s"),
+            "{:?}",
+            t[1]
+        );
+        let md = markdown(&d);
+        assert!(md.contains("## objr against its targets"), "{md}");
+        assert!(
+            md.contains("| strategy | ΔE*uv 4.00 | ΔE*uv 2.00 | ΔE*uv 1.00 | ΔE*uv 0.50 |"),
+            "{md}"
+        );
+        assert!(md.contains("| okdt | 5.00 | – | – | – |"), "{md}");
+        let x = cross_scene(&[("a".into(), d)]);
+        assert!(
+            x.contains("| target: objr's build takes at most 3× PROXI's | no |"),
+            "{x}"
+        );
+        // Without objr, no targets.
+        let d = ReportData {
+            clusters: vec![crec(Strategy::Proxi, 3.0, 10.0)],
+            ..Default::default()
+        };
+        assert!(objr_targets(&d).is_empty());
+        assert!(!markdown(&d).contains("against its targets"));
     }
 }
