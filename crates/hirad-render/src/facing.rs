@@ -1,11 +1,12 @@
-//! Coincident faces that face opposite ways (a double-sided lamp panel modelled as two
-//! one-sided emitters back to back): a ray meets both at the same distance, and the closest
-//! hit may be either. The path tracer and the gather take the one facing the ray, as the
-//! solver does (its coplanar overlaps give that side to the face that looks out of it), so a
-//! ray onto such a panel sees the emitter facing it instead of the back of the other (which
-//! absorbs, or reflects, and loses the panel's emission).
+//! Coincident faces: a ray meets them at the same distance and the closest hit may be any of
+//! them. The path tracer and the gather take the one a viewer sees by one rule: the face
+//! facing the ray (a double-sided lamp panel modelled as two one-sided emitters back to back
+//! shows its emitter, not the back of the other), then an emitter (a lamp panel flush with a
+//! ceiling shines, as the solver's coplanar overlaps give it that place), then the lower id
+//! (a duplicated face is seen once). A light sample on a face counts only where that face is
+//! the one seen, so that a duplicated lamp sends its light once, as a ray onto it sees it once.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use hirad_accel::cluster::ClusterTree;
 use hirad_accel::ray::{Hit, RayCaster};
 use hirad_core::geom::longest_edge;
@@ -13,16 +14,16 @@ use hirad_scene::Scene;
 use rayon::prelude::*;
 
 /// Plane distance, relative to the larger triangle's longest edge, within which two parallel
-/// triangles facing opposite ways count as coincident.
+/// triangles count as coincident.
 const REL_TOL: f32 = 1e-4;
 
-/// Normals within this of opposite (`cos` below `−1 + PARALLEL`) make two triangles face
-/// opposite ways.
+/// Normals within this of parallel or opposite (`|cos|` above `1 − PARALLEL`) make two
+/// triangles parallel.
 const PARALLEL: f32 = 1e-5;
 
-/// The triangles with a coincident one facing the other way (their planes within
-/// [`REL_TOL`], their boxes overlapping: a superset of those that overlap it; the ray query of
-/// [`Facing::resolve`] decides).
+/// The triangles with a coincident one (their planes within [`REL_TOL`], their interiors
+/// overlapping in the plane by more than it: neighbours that only share an edge do not
+/// count).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Facing {
     /// Sorted triangle ids.
@@ -30,19 +31,18 @@ pub(crate) struct Facing {
 }
 
 impl Facing {
-    /// Find the triangles of `scene` with a coincident opposite one, querying the boxes of
-    /// `tree`.
+    /// Find the triangles of `scene` with a coincident one, querying the boxes of `tree`.
     pub(crate) fn new(scene: &Scene, tree: &ClusterTree) -> Facing {
         let ids = (0..scene.num_triangles() as u32)
             .into_par_iter()
-            .filter(|&i| has_opposite(scene, tree, i))
+            .filter(|&i| has_coincident(scene, tree, i))
             .collect::<Vec<u32>>();
-        tracing::debug!("{} triangles with a coincident one facing away", ids.len());
+        tracing::debug!("{} triangles with a coincident one", ids.len());
         Facing { ids }
     }
 
-    /// The hit a ray from `o` along `d` sees: `hit`, or when `hit` shows its back and a
-    /// coincident triangle faces the ray at the same distance, that one.
+    /// The hit a ray from `o` along `d` sees: `hit`, or the coincident triangle at the same
+    /// distance that comes first by facing the ray, then emitting, then the lower id.
     #[inline]
     pub(crate) fn resolve(
         &self,
@@ -51,24 +51,48 @@ impl Facing {
         (o, d): (Vec3, Vec3),
         hit: Hit,
     ) -> Hit {
-        if self.ids.is_empty()
-            || scene.normals[hit.tri as usize].dot(d) < 0.0
-            || self.ids.binary_search(&hit.tri).is_err()
-        {
+        if self.ids.is_empty() || self.ids.binary_search(&hit.tri).is_err() {
             return hit;
         }
+        let rank = |t: u32| {
+            let away = scene.normals[t as usize].dot(d) >= 0.0;
+            (away, !scene.material_of(t as usize).is_emitter(), t)
+        };
         let span = (hit.t * (1.0 - 1e-4), hit.t * (1.0 + 1e-4));
-        let away = |t: u32| scene.normals[t as usize].dot(d) >= 0.0;
-        match caster.occluder(o, d, span, &away, None) {
-            Some(tri) => Hit { tri, ..hit },
-            None => hit,
+        let mut best = hit.tri;
+        // Each query finds one that comes before `best`, if any: a few queries at most.
+        while let Some(t) = caster.occluder(o, d, span, &|t| rank(t) >= rank(best), None) {
+            best = t;
         }
+        Hit { tri: best, ..hit }
+    }
+
+    /// Whether a light sample at `x + to` on triangle `tri`, unoccluded up to it, is seen
+    /// from `x` as `tri` and not as a coincident triangle that [`Facing::resolve`] puts first.
+    #[inline]
+    pub(crate) fn sees(
+        &self,
+        scene: &Scene,
+        caster: &RayCaster,
+        (x, to): (Vec3, Vec3),
+        tri: u32,
+    ) -> bool {
+        if self.ids.is_empty() || self.ids.binary_search(&tri).is_err() {
+            return true;
+        }
+        let hit = Hit {
+            t: 1.0,
+            tri,
+            u: 0.0,
+            v: 0.0,
+        };
+        self.resolve(scene, caster, (x, to), hit).tri == tri
     }
 }
 
-/// True when a triangle facing away from triangle `i` lies in its plane (within the
-/// tolerance) with a box overlapping its box.
-fn has_opposite(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
+/// True when a triangle parallel to triangle `i` (facing either way) lies in its plane and
+/// overlaps it there (both within the tolerance).
+fn has_coincident(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
     if scene.areas[i as usize] <= 0.0 {
         return false;
     }
@@ -80,7 +104,7 @@ fn has_opposite(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
     tree.any_surface_near(lo, hi, |j| {
         if j == i
             || scene.areas[j as usize] <= 0.0
-            || ni.dot(scene.normals[j as usize]) > -1.0 + PARALLEL
+            || ni.dot(scene.normals[j as usize]).abs() < 1.0 - PARALLEL
         {
             return false;
         }
@@ -90,5 +114,91 @@ fn has_opposite(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
         vj.iter().all(|p| ni.dot(*p - vi[0]).abs() <= tol)
             && bj.max.cmpge(lo).all()
             && bj.min.cmple(hi).all()
+            && overlap_in_plane(ni, &vi, &vj, tol)
     })
+}
+
+/// Whether triangles `a` and `b`, lying in one plane of normal `n`, overlap there by more
+/// than `tol`: no edge direction of either separates their projections (the separating axis
+/// test, with a gap of up to `tol` counted as separating).
+fn overlap_in_plane(n: Vec3, a: &[Vec3; 3], b: &[Vec3; 3], tol: f32) -> bool {
+    let m = n.abs();
+    let drop = if m.x >= m.y && m.x >= m.z {
+        0
+    } else if m.y >= m.z {
+        1
+    } else {
+        2
+    };
+    let p = |v: Vec3| {
+        let c = v.to_array();
+        Vec2::new(c[(drop + 1) % 3], c[(drop + 2) % 3])
+    };
+    let (a, b) = (a.map(p), b.map(p));
+    let range = |t: &[Vec2; 3], axis: Vec2| {
+        let d = t.map(|v| v.dot(axis));
+        (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
+    };
+    let edges_of = [a, b];
+    edges_of.iter().all(|t| {
+        (0..3).all(|k| {
+            let e = t[(k + 1) % 3] - t[k];
+            let len = e.length();
+            if len == 0.0 {
+                return true;
+            }
+            let axis = e.perp() / len;
+            let (a0, a1) = range(&a, axis);
+            let (b0, b1) = range(&b, axis);
+            a1.min(b1) - a0.max(b0) > tol
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn faces_overlap_in_their_plane_not_along_a_shared_edge() {
+        let v = |x: f32, y: f32| Vec3::new(x, y, 0.0);
+        let (n, tol) = (Vec3::Z, 1e-4);
+        let a = [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)];
+        // The other half of the unit square: they only share the diagonal.
+        let b = [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)];
+        assert!(!overlap_in_plane(n, &a, &b, tol));
+        // The same triangle, in another vertex order, overlaps; so does the other diagonal's half.
+        assert!(overlap_in_plane(n, &a, &[a[1], a[2], a[0]], tol));
+        assert!(overlap_in_plane(
+            n,
+            &a,
+            &[v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)],
+            tol
+        ));
+        // A small triangle inside; one beyond a vertex; one across an edge by a sliver.
+        assert!(overlap_in_plane(
+            n,
+            &a,
+            &[v(0.6, 0.2), v(0.8, 0.2), v(0.8, 0.4)],
+            tol
+        ));
+        assert!(!overlap_in_plane(
+            n,
+            &a,
+            &[v(1.1, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
+            tol
+        ));
+        assert!(overlap_in_plane(
+            n,
+            &a,
+            &[v(0.999, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+            tol
+        ));
+        assert!(!overlap_in_plane(
+            n,
+            &a,
+            &[v(0.99995, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+            tol
+        ));
+    }
 }

@@ -417,7 +417,9 @@ impl<'a> Gatherer<'a> {
                 let cos_y = -lt.normal.dot(w);
                 if cos_x > 0.0 && cos_y > 0.0 {
                     cnt.shadow += 1;
-                    if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4) {
+                    if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4)
+                        && self.facing.sees(scene, self.caster, (x, to), lt.tri)
+                    {
                         let pdf_light = lt.pdf_area * dist2 / cos_y;
                         let w = if mis {
                             power_heuristic(pdf_light, cos_x / PI)

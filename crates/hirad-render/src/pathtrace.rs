@@ -325,7 +325,9 @@ impl<'a> PathTracer<'a> {
                     if cos_x > 0.0 && cos_y > 0.0 {
                         cnt.shadow(x, to, 0.0, 1.0 - 1e-4);
                         // The segment stops just short of the light's surface.
-                        if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4) {
+                        if !self.caster.occluded(x, to, 0.0, 1.0 - 1e-4)
+                            && self.facing.sees(scene, self.caster, (x, to), lt.tri)
+                        {
                             let pdf_a = lt.pdf_area;
                             let pdf_light = pdf_a * dist2 / cos_y;
                             let wmis = power_heuristic(pdf_light, cos_x / PI);

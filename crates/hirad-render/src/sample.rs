@@ -29,6 +29,8 @@ pub(crate) struct LightTri {
     pub(crate) emission: Vec3,
     /// Density per unit area of a point on this triangle (see `Lights::pdf_area`).
     pub(crate) pdf_area: f32,
+    /// The scene triangle.
+    pub(crate) tri: u32,
 }
 
 impl Lights {
@@ -66,6 +68,7 @@ impl Lights {
                     normal: scene.normals[t],
                     emission: scene.material_of(t).emission,
                     pdf_area: pdf_area[t],
+                    tri: t as u32,
                 }
             })
             .collect();
@@ -254,6 +257,7 @@ mod tests {
             normal: Vec3::Z,
             emission: Vec3::ONE,
             pdf_area: 1.0,
+            tri: i,
         };
         let lights = Lights {
             tris: (10..10 + w.len() as u32).map(rec).collect(),

@@ -40,6 +40,17 @@ fn gather_stats(
 /// the solution's radiosity `b`) over the floor `[-half, half]²` at z = 0 facing up (ρ = 0.5,
 /// radiosity 0): the scene, the solution mesh and the quad's corners.
 fn quad_and_floor(half: f32, le: f32, b: f32) -> (Scene, ColoredMesh, [Vec3; 4]) {
+    quad_and_floor_copies(half, le, b, false)
+}
+
+/// [`quad_and_floor`], with `copy`: the quad a second time in the same place (triangulated
+/// along the other diagonal, after the first, of the same material and radiosity).
+fn quad_and_floor_copies(
+    half: f32,
+    le: f32,
+    b: f32,
+    copy: bool,
+) -> (Scene, ColoredMesh, [Vec3; 4]) {
     let quad = [
         Vec3::new(-0.5, -0.3, 1.0),
         Vec3::new(-0.5, 0.3, 1.0),
@@ -54,13 +65,19 @@ fn quad_and_floor(half: f32, le: f32, b: f32) -> (Scene, ColoredMesh, [Vec3; 4])
     ];
     positions.extend_from_slice(&quad);
     // Quad corners in this order face down (-z).
-    let triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let mut triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let mut tri_material = vec![0, 0, 1, 1];
+    if copy {
+        triangles.extend([[5, 6, 7], [5, 7, 4]]);
+        tri_material.extend([1, 1]);
+    }
+    let n = triangles.len();
     let raw = RawScene {
         name: "quad over a floor".into(),
         positions: positions.clone(),
         triangles: triangles.clone(),
-        tri_material: vec![0, 0, 1, 1],
-        tri_object: vec![0; 4],
+        tri_material,
+        tri_object: vec![0; n],
         materials: vec![
             Material::diffuse("floor", Vec3::splat(0.5)),
             Material {
@@ -74,6 +91,7 @@ fn quad_and_floor(half: f32, le: f32, b: f32) -> (Scene, ColoredMesh, [Vec3; 4])
     };
     let scene = Scene::from_raw(raw, &SceneOptions::default()).unwrap();
     assert!(scene.normals[2].z < -0.99, "the quad faces down");
+    assert!(scene.normals[n - 1].z < -0.99, "its copy faces down");
     let mut colors = vec![Vec3::ZERO; 4];
     colors.extend([Vec3::splat(b); 4]);
     let mesh = ColoredMesh {
@@ -109,7 +127,19 @@ fn quad_over_floor(
     opts: &GatherOptions,
     size: (u32, u32),
 ) -> (GatherStats, f64, f64, f64) {
-    let (scene, mesh, quad) = quad_and_floor(20.0, le, b);
+    quad_over_floor_copies(le, b, opts, size, false)
+}
+
+/// [`quad_over_floor`] with the quad twice in the same place when `copy`
+/// ([`quad_and_floor_copies`]): the floor's light is the same.
+fn quad_over_floor_copies(
+    le: f32,
+    b: f32,
+    opts: &GatherOptions,
+    size: (u32, u32),
+    copy: bool,
+) -> (GatherStats, f64, f64, f64) {
+    let (scene, mesh, quad) = quad_and_floor_copies(20.0, le, b, copy);
     let rho = 0.5f32;
     let view = CameraView {
         eye: Vec3::new(0.2, 0.1, 0.6),
@@ -183,6 +213,24 @@ fn direct_term_under_a_quad_light_is_the_polygon_irradiance() {
         // multiple importance weights.
         assert_eq!(stats.cached > stats.camera_rays / 5, cache > 0, "{stats:?}");
     }
+}
+
+/// A lamp modelled twice in the same place (a model merged with itself, the hospital's
+/// `hosp.mgf`) lights the floor once, as a ray onto it sees it once: the light samples on the
+/// copy that rays do not see count nowhere.
+#[test]
+fn a_duplicated_lamp_lights_the_floor_once() {
+    let le = 2.0f32;
+    let opts = GatherOptions {
+        rays: 4096,
+        seed: 7,
+        cache: 0,
+        ..Default::default()
+    };
+    let (_, worst, _, mean) =
+        quad_over_floor_copies(le, std::f32::consts::PI * le, &opts, (10, 8), true);
+    assert!(worst < 0.015, "worst pixel off by {:.2}%", 100.0 * worst);
+    assert!(mean.abs() < 0.004, "mean off by {:.2}%", 100.0 * mean);
 }
 
 /// Indirect light: the quad emits nothing but the solution gives it B = 2π, so all the

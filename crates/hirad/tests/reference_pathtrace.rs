@@ -112,8 +112,7 @@ fn square_emitter_over_a_floor() {
         });
     });
     assert!(s.normals[2].dot(Vec3::NEG_Y) > 0.999);
-    let f = 4.0 / (2.0 * PI) * 2.0 * (0.5f64).sqrt() * (0.5f64).sqrt().atan();
-    let want = 0.5 * f;
+    let want = floor_under_unit_square();
     let opts = ReferenceOptions::default();
     let got = mean_radiance(&s, &opts, Vec3::new(0.0, 0.5, 0.0), Vec3::NEG_Y, 20000);
     println!("emitter: got {got}, want {want}");
@@ -165,6 +164,91 @@ fn a_ray_sees_the_face_of_coincident_faces_that_faces_it() {
             assert_eq!(got, Vec3::ONE, "from below at {bottom}");
         }
     }
+}
+
+/// The floor's radiance under the centre of a square emitter of `L_e = 1` at height 1
+/// ([`square_emitter_over_a_floor`]).
+fn floor_under_unit_square() -> f64 {
+    0.5 * 4.0 / (2.0 * PI) * 2.0 * (0.5f64).sqrt() * (0.5f64).sqrt().atan()
+}
+
+#[test]
+fn a_duplicated_lamp_shines_once() {
+    // The square emitter twice in the same place, the second copy triangulated along the other
+    // diagonal and brighter: a ray onto the lamp sees the first (lower ids win ties between
+    // faces alike), and the floor gets its light once: the light samples on the second copy
+    // count nowhere, where that copy is not what a ray sees.
+    let s = floor_scene(|r| {
+        let b = square_at_height_one(r);
+        r.triangles.extend([
+            [b, b + 1, b + 2],
+            [b, b + 2, b + 3],
+            [b + 1, b + 2, b + 3],
+            [b + 1, b + 3, b],
+        ]);
+        r.tri_material.extend([1, 1, 2, 2]);
+        r.tri_object.extend([1, 1, 2, 2]);
+        r.objects = ["floor", "lamp", "copy"].map(String::from).to_vec();
+        for (name, e) in [("lamp", 1.0), ("copy", 3.0)] {
+            r.materials.push(Material {
+                name: name.into(),
+                rho: Vec3::ZERO,
+                emission: Vec3::splat(e),
+            });
+        }
+    });
+    assert!(s.normals[4].dot(Vec3::NEG_Y) > 0.999);
+    let want = floor_under_unit_square();
+    let opts = ReferenceOptions::default();
+    let got = mean_radiance(&s, &opts, Vec3::new(0.0, 0.5, 0.0), Vec3::NEG_Y, 20000);
+    println!("duplicated lamp: got {got}, want {want}");
+    assert!((got.x as f64 - want).abs() < 0.01 * want);
+    let up = mean_radiance(&s, &opts, Vec3::new(0.3, 0.5, 0.2), Vec3::Y, 10);
+    assert_eq!(up, Vec3::ONE);
+}
+
+#[test]
+fn a_lamp_flush_with_a_ceiling_shines() {
+    // A black ceiling [−2, 2]² at height 1 facing down, listed first (lower ids), and the
+    // square emitter in its plane: rays onto the lamp see the lamp (an emitter comes before
+    // a coincident non-emitter, as the solver gives it the overlap), so the floor gets the
+    // analytic light through both light samples and the bounce rays that hit the lamp.
+    let s = floor_scene(|r| {
+        let c = r.positions.len() as u32;
+        r.positions.extend([
+            Vec3::new(-2.0, 1.0, -2.0),
+            Vec3::new(2.0, 1.0, -2.0),
+            Vec3::new(2.0, 1.0, 2.0),
+            Vec3::new(-2.0, 1.0, 2.0),
+        ]);
+        let b = square_at_height_one(r);
+        r.triangles.extend([
+            [c, c + 1, c + 2],
+            [c, c + 2, c + 3],
+            [b, b + 1, b + 2],
+            [b, b + 2, b + 3],
+        ]);
+        r.tri_material.extend([1, 1, 2, 2]);
+        r.tri_object.extend([1, 1, 2, 2]);
+        r.objects = ["floor", "ceiling", "lamp"].map(String::from).to_vec();
+        r.materials.push(Material::diffuse("ceiling", Vec3::ZERO));
+        r.materials.push(Material {
+            name: "lamp".into(),
+            rho: Vec3::ZERO,
+            emission: Vec3::ONE,
+        });
+    });
+    assert!(s.normals[2].dot(Vec3::NEG_Y) > 0.999 && s.normals[4].dot(Vec3::NEG_Y) > 0.999);
+    let want = floor_under_unit_square();
+    let opts = ReferenceOptions::default();
+    let got = mean_radiance(&s, &opts, Vec3::new(0.0, 0.5, 0.0), Vec3::NEG_Y, 20000);
+    println!("flush lamp: got {got}, want {want}");
+    assert!((got.x as f64 - want).abs() < 0.01 * want);
+    let up = mean_radiance(&s, &opts, Vec3::new(0.3, 0.5, 0.2), Vec3::Y, 10);
+    assert_eq!(up, Vec3::ONE);
+    // Beside the lamp, the ceiling.
+    let side = mean_radiance(&s, &opts, Vec3::new(1.5, 0.5, 0.2), Vec3::Y, 10);
+    assert_eq!(side, Vec3::ZERO);
 }
 
 #[test]
