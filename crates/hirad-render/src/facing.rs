@@ -1,10 +1,11 @@
 //! Coincident faces: a ray meets them at the same distance and the closest hit may be any of
 //! them. The path tracer and the gather take the one a viewer sees by one rule: the face
 //! facing the ray (a double-sided lamp panel modelled as two one-sided emitters back to back
-//! shows its emitter, not the back of the other), then an emitter (a lamp panel flush with a
-//! ceiling shines, as the solver's coplanar overlaps give it that place), then the lower id
-//! (a duplicated face is seen once). A light sample on a face counts only where that face is
-//! the one seen, so that a duplicated lamp sends its light once, as a ray onto it sees it once.
+//! shows its emitter, not the back of the other), then the solver's order of coplanar
+//! overlaps: an emitter (a lamp panel flush with a ceiling shines), then the smaller object
+//! (a poster on a wall), then the smaller triangle, then the lower id (a duplicated face is
+//! seen once). A light sample on a face counts only where that face is the one seen, so that
+//! a duplicated lamp sends its light once, as a ray onto it sees it once.
 
 use glam::{Vec2, Vec3};
 use hirad_accel::cluster::ClusterTree;
@@ -28,6 +29,8 @@ const PARALLEL: f32 = 1e-5;
 pub(crate) struct Facing {
     /// Sorted triangle ids.
     ids: Vec<u32>,
+    /// Surface area of each object.
+    object_area: Vec<f64>,
 }
 
 impl Facing {
@@ -38,11 +41,18 @@ impl Facing {
             .filter(|&i| has_coincident(scene, tree, i))
             .collect::<Vec<u32>>();
         tracing::debug!("{} triangles with a coincident one", ids.len());
-        Facing { ids }
+        let mut object_area = vec![0.0f64; scene.objects.len().max(1)];
+        if !ids.is_empty() {
+            for t in 0..scene.num_triangles() {
+                object_area[scene.tri_object[t] as usize] += scene.areas[t] as f64;
+            }
+        }
+        Facing { ids, object_area }
     }
 
     /// The hit a ray from `o` along `d` sees: `hit`, or the coincident triangle at the same
-    /// distance that comes first by facing the ray, then emitting, then the lower id.
+    /// distance that comes first by facing the ray, then emitting, then the smaller object's
+    /// area, then the smaller triangle's, then the lower id.
     #[inline]
     pub(crate) fn resolve(
         &self,
@@ -55,8 +65,14 @@ impl Facing {
             return hit;
         }
         let rank = |t: u32| {
-            let away = scene.normals[t as usize].dot(d) >= 0.0;
-            (away, !scene.material_of(t as usize).is_emitter(), t)
+            let i = t as usize;
+            (
+                scene.normals[i].dot(d) >= 0.0,
+                !scene.material_of(i).is_emitter(),
+                self.object_area[scene.tri_object[i] as usize],
+                scene.areas[i],
+                t,
+            )
         };
         let span = (hit.t * (1.0 - 1e-4), hit.t * (1.0 + 1e-4));
         let mut best = hit.tri;

@@ -252,6 +252,44 @@ fn a_lamp_flush_with_a_ceiling_shines() {
 }
 
 #[test]
+fn a_poster_on_the_floor_is_seen_over_it() {
+    // A dark square "poster" lying in the floor's plane, listed after the floor (higher ids),
+    // under the sun: a ray onto it sees the poster (the smaller object, as the solver gives it
+    // the overlap), ρ·E·cos/π exactly (the bounce escapes, no sky); beside it, the floor.
+    let dir = Vec3::new(1.0, 2.0, 0.0).normalize();
+    let e = 3.0f32;
+    let s = floor_scene(|r| {
+        let b = r.positions.len() as u32;
+        r.positions.extend([
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+        ]);
+        r.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+        r.tri_material.extend([1, 1]);
+        r.tri_object.extend([1, 1]);
+        r.objects = ["floor", "poster"].map(String::from).to_vec();
+        r.materials
+            .push(Material::diffuse("poster", Vec3::splat(0.1)));
+        r.sun = Some(Sun {
+            direction: dir,
+            irradiance: Vec3::splat(e),
+        });
+    });
+    assert_eq!(s.normals[2], Vec3::Y);
+    let opts = ReferenceOptions::default();
+    for (x, rho) in [(0.3, 0.1f32), (1.5, 0.5)] {
+        let got = mean_radiance(&s, &opts, Vec3::new(x, 1.0, 0.2), Vec3::NEG_Y, 10);
+        let want = rho * e * dir.y / std::f32::consts::PI;
+        assert!(
+            (got.x - want).abs() < 1e-5 * want,
+            "at x = {x}: {got} vs {want}"
+        );
+    }
+}
+
+#[test]
 fn sun_and_sky_on_a_floor() {
     let dir = Vec3::new(1.0, 2.0, 0.0).normalize();
     let e = 3.0f32;
