@@ -178,43 +178,41 @@ mod tests {
     #[test]
     fn faces_overlap_in_their_plane_not_along_a_shared_edge() {
         let v = |x: f32, y: f32| Vec3::new(x, y, 0.0);
-        let (n, tol) = (Vec3::Z, 1e-4);
         let a = [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)];
-        // The other half of the unit square: they only share the diagonal.
-        let b = [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)];
-        assert!(!overlap_in_plane(n, &a, &b, tol));
-        // The same triangle, in another vertex order, overlaps; so does the other diagonal's half.
-        assert!(overlap_in_plane(n, &a, &[a[1], a[2], a[0]], tol));
-        assert!(overlap_in_plane(
-            n,
-            &a,
-            &[v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)],
-            tol
-        ));
-        // A small triangle inside; one beyond a vertex; one across an edge by a sliver.
-        assert!(overlap_in_plane(
-            n,
-            &a,
-            &[v(0.6, 0.2), v(0.8, 0.2), v(0.8, 0.4)],
-            tol
-        ));
-        assert!(!overlap_in_plane(
-            n,
-            &a,
-            &[v(1.1, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
-            tol
-        ));
-        assert!(overlap_in_plane(
-            n,
-            &a,
-            &[v(0.999, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
-            tol
-        ));
-        assert!(!overlap_in_plane(
-            n,
-            &a,
-            &[v(0.99995, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
-            tol
-        ));
+        for (b, overlap, what) in [
+            (
+                [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)],
+                false,
+                "the square's other half",
+            ),
+            ([a[1], a[2], a[0]], true, "itself in another vertex order"),
+            (
+                [v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)],
+                true,
+                "the other diagonal's half",
+            ),
+            (
+                [v(0.6, 0.2), v(0.8, 0.2), v(0.8, 0.4)],
+                true,
+                "a small one inside",
+            ),
+            (
+                [v(1.1, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
+                false,
+                "one beyond a vertex",
+            ),
+            (
+                [v(0.999, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+                true,
+                "across an edge by 0.001",
+            ),
+            (
+                [v(0.99995, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+                false,
+                "within the tolerance",
+            ),
+        ] {
+            assert_eq!(overlap_in_plane(Vec3::Z, &a, &b, 1e-4), overlap, "{what}");
+        }
     }
 }
