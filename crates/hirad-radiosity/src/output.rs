@@ -1,7 +1,10 @@
 //! Per-vertex radiosity meshes of a solution and the result files of `hirad solve`.
 //!
 //! The mesh is the leaf-element mesh: one triangle per leaf surface element (back faces of
-//! two-sided solutions are separate triangles with reversed winding). Smooth output averages
+//! two-sided solutions are separate triangles with reversed winding), except leaves wholly
+//! under another face ([`Solution::under_face`]: a duplicated face under its original): what
+//! shows there is that face, and a second, unlit face in the same place would fight it in any
+//! viewer's depth test. Smooth output averages
 //! the radiosity of the leaf elements meeting at a vertex, each weighted by its open share
 //! (a leaf inside a solid or under a coplanar face does not darken its visible neighbours),
 //! then fits the vertex values so that every leaf keeps its radiosity as its mean, drawing a
@@ -23,10 +26,14 @@ pub fn radiosity_mesh(sol: &Solution, scene: &Scene, flat: bool) -> ColoredMesh 
     leaf_mesh(sol, scene, flat).0
 }
 
-/// [`radiosity_mesh`] and, per mesh triangle, its leaf (index into [`Solution::leaves`]).
+/// [`radiosity_mesh`] and, per mesh triangle, its leaf element.
 fn leaf_mesh(sol: &Solution, scene: &Scene, flat: bool) -> (ColoredMesh, Vec<u32>) {
-    let leaves = sol.leaves();
     let el = &sol.elements;
+    let leaves: Vec<u32> = sol
+        .leaves()
+        .into_iter()
+        .filter(|id| sol.under_face.binary_search(id).is_err())
+        .collect();
     let mut mesh = ColoredMesh::default();
     // Per vertex: Σ w·B, Σ w (open shares), Σ B and the count (when every leaf is shut).
     let mut sums: Vec<(DVec3, f64, DVec3, u32)> = Vec::new();
@@ -70,7 +77,7 @@ fn leaf_mesh(sol: &Solution, scene: &Scene, flat: bool) -> (ColoredMesh, Vec<u32
             }
         })
         .collect();
-    let mut leaf_of: Vec<u32> = (0..leaves.len() as u32).collect();
+    let mut leaf_of = leaves.clone();
     if !flat {
         keep_leaf_means(&mut mesh, &mut leaf_of, &leaves, el);
     }
@@ -130,7 +137,7 @@ fn keep_leaf_means(
         mesh.triangles[t] = [tri[0], tri[1], ci];
         mesh.triangles.push([tri[1], tri[2], ci]);
         mesh.triangles.push([tri[2], tri[0], ci]);
-        leaf_of.extend([t as u32; 2]);
+        leaf_of.extend([id; 2]);
         split += 1;
     }
     tracing::debug!(
@@ -211,19 +218,22 @@ mod tests {
         let tree = ClusterTree::build(&scene, Strategy::Proxi, &ClusterConfig::default());
         let cfg = SolverConfig::preset("fast").unwrap();
         let sol = solve(&scene, &tree, &cfg, &NoProgress).unwrap();
-        let leaves = sol.leaves();
         let (mesh, leaf_of) = leaf_mesh(&sol, &scene, false);
-        let mut acc = vec![(DVec3::ZERO, 0.0f64); leaves.len()];
+        let mut acc: HashMap<u32, (DVec3, f64)> = HashMap::new();
         for (&tri, &l) in mesh.triangles.iter().zip(&leaf_of) {
             let a = triangle_area(&mesh, tri) as f64;
             let m = vertex_mean(&mesh, tri).as_dvec3();
-            acc[l as usize].0 += m * a;
-            acc[l as usize].1 += a;
+            let e = acc.entry(l).or_default();
+            e.0 += m * a;
+            e.1 += a;
         }
+        // Every leaf is drawn but those under another face.
+        let leaves = sol.leaves();
+        let drawn = |id: u32| sol.under_face.binary_search(&id).is_err();
+        assert!(leaves.iter().all(|&id| acc.contains_key(&id) == drawn(id)));
         let (mut err, mut total, mut darker) = (0.0f64, 0.0f64, 0usize);
-        for (k, &id) in leaves.iter().enumerate() {
+        for (&id, &(s, a)) in &acc {
             let b = sol.elements.b[id as usize];
-            let (s, a) = acc[k];
             let mean = s / a.max(1e-300);
             let scale = b.max_element().max(mean.max_element());
             // Darker than the leaf only by rounding; brighter only where the centroid value

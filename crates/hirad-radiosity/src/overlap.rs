@@ -233,9 +233,13 @@ impl Covers {
     /// that covers it or inside a closed solid.
     #[inline]
     pub fn covered(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
-        if self.shut.shut(tri, p) {
-            return true;
-        }
+        self.shut.shut(tri, p) || self.under_face(tri, n, p)
+    }
+
+    /// True when point `p` of triangle `tri`, on its side facing `n`, lies under a triangle
+    /// that covers it (a coplanar one that owns the place, or one across a closed gap).
+    #[inline]
+    pub fn under_face(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
         let r = self.range(tri);
         if r.is_empty() {
             return false;

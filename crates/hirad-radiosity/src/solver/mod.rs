@@ -71,6 +71,10 @@ pub struct Solution {
     pub root_irradiance: Vec<DVec3>,
     /// Statistics of the solve.
     pub stats: SolveStats,
+    /// Sorted leaf elements with no open part whose centroid lies under another face (a
+    /// duplicated face under its original, a face under a coplanar one that owns the place):
+    /// what a viewer sees there is that face, and the output mesh leaves these out.
+    pub under_face: Vec<u32>,
 }
 
 impl Solution {
@@ -526,11 +530,25 @@ impl Solver<'_> {
         st.memory.budget_bytes = self.cfg.max_memory;
         st.memory.budget_hit = self.budget_hit;
         st.time.total = t0.elapsed().as_secs_f64();
+        let under_face = (0..self.el.elems.len() as u32)
+            .filter(|&id| {
+                let e = &self.el.elems[id as usize];
+                e.kind == Kind::Surface
+                    && e.num_children == 0
+                    && self.el.open[id as usize] == 0.0
+                    && self.covers.under_face(
+                        e.tri,
+                        e.normal,
+                        (e.verts[0] + e.verts[1] + e.verts[2]) / 3.0,
+                    )
+            })
+            .collect();
         Ok(Solution {
             elements: self.el,
             links: self.set,
             root_irradiance: self.root_irr,
             stats: self.stats,
+            under_face,
         })
     }
 }
