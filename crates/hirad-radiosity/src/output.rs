@@ -2,9 +2,9 @@
 //!
 //! The mesh is the leaf-element mesh: one triangle per leaf surface element (back faces of
 //! two-sided solutions are separate triangles with reversed winding), except leaves wholly
-//! under another face ([`Solution::under_face`]: a duplicated face under its original): what
-//! shows there is that face, and a second, unlit face in the same place would fight it in any
-//! viewer's depth test. Smooth output averages
+//! under a coplanar face that owns the place ([`Solution::under_face`]: a duplicated face
+//! under its original): what shows there is that face, and a second, unlit face in the same
+//! place would fight it in any viewer's depth test. Smooth output averages
 //! the radiosity of the leaf elements meeting at a vertex, each weighted by its open share
 //! (a leaf inside a solid or under a coplanar face does not darken its visible neighbours),
 //! then fits the vertex values so that every leaf keeps its radiosity as its mean, drawing a

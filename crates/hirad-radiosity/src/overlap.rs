@@ -233,13 +233,20 @@ impl Covers {
     /// that covers it or inside a closed solid.
     #[inline]
     pub fn covered(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
-        self.shut.shut(tri, p) || self.under_face(tri, n, p)
+        self.shut.shut(tri, p) || self.under(tri, Some(n), p)
     }
 
-    /// True when point `p` of triangle `tri`, on its side facing `n`, lies under a triangle
-    /// that covers it (a coplanar one that owns the place, or one across a closed gap).
+    /// True when point `p` of triangle `tri` lies under a coplanar triangle that owns the
+    /// place (a duplicated face under its original): what a ray sees there is that triangle.
     #[inline]
-    pub fn under_face(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
+    pub fn under_coplanar(&self, tri: u32, p: Vec3) -> bool {
+        self.under(tri, None, p)
+    }
+
+    /// True when point `p` of triangle `tri` lies under a triangle that covers it: coplanar,
+    /// or with `n`, across a closed gap on its side facing `n`.
+    #[inline]
+    fn under(&self, tri: u32, n: Option<Vec3>, p: Vec3) -> bool {
         let r = self.range(tri);
         if r.is_empty() {
             return false;
@@ -247,7 +254,7 @@ impl Covers {
         let q = project(p, self.axis[tri as usize] as usize);
         let test = |k: usize| {
             let s = self.sides[k];
-            (s == Vec3::ZERO || s.dot(n) > 0.0) && inside(q, &self.shapes[k])
+            (s == Vec3::ZERO || n.is_some_and(|n| s.dot(n) > 0.0)) && inside(q, &self.shapes[k])
         };
         match self.grid_of.get(tri as usize) {
             Some(&g) if g != u32::MAX => {
