@@ -217,36 +217,33 @@ impl Covers {
         if self.range(tri).is_empty() && !self.shut.has_mask(tri) {
             return 1.0;
         }
-        let mut open = 0;
-        for i in 0..8 {
-            for j in 0..8 {
-                let (u1, u2) = ((i as f32 + 0.5) / 8.0, (j as f32 + 0.5) / 8.0);
-                let s = u1.sqrt();
-                let p = v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2);
-                open += !self.covered(tri, n, p) as u32;
-            }
-        }
+        let open = stratified(v).filter(|&p| !self.covered(tri, n, p)).count();
         open as f64 / 64.0
+    }
+
+    /// True when the triangle `v` (a part of input triangle `tri`) lies within one coplanar
+    /// triangle that owns the place (up to [`REL_TOL`] of its longest edge): a duplicated face
+    /// under its original. Points a ray can reach between several owners do not count.
+    pub fn within_coplanar_owner(&self, tri: u32, v: &[Vec3; 3]) -> bool {
+        let axis = self.axis[tri as usize] as usize;
+        let q = v.map(|p| project(p, axis));
+        let tol = REL_TOL * longest_edge(v);
+        self.range(tri).any(|k| {
+            self.sides[k] == Vec3::ZERO && q.iter().all(|&p| inside_or_on(p, &self.shapes[k], tol))
+        })
     }
 
     /// True when point `p` of triangle `tri`, on its side facing `n`, lies under a triangle
     /// that covers it or inside a closed solid.
     #[inline]
     pub fn covered(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
-        self.shut.shut(tri, p) || self.under(tri, Some(n), p)
-    }
-
-    /// True when point `p` of triangle `tri` lies under a coplanar triangle that owns the
-    /// place (a duplicated face under its original): what a ray sees there is that triangle.
-    #[inline]
-    pub fn under_coplanar(&self, tri: u32, p: Vec3) -> bool {
-        self.under(tri, None, p)
+        self.shut.shut(tri, p) || self.under(tri, n, p)
     }
 
     /// True when point `p` of triangle `tri` lies under a triangle that covers it: coplanar,
-    /// or with `n`, across a closed gap on its side facing `n`.
+    /// or across a closed gap on its side facing `n`.
     #[inline]
-    fn under(&self, tri: u32, n: Option<Vec3>, p: Vec3) -> bool {
+    fn under(&self, tri: u32, n: Vec3, p: Vec3) -> bool {
         let r = self.range(tri);
         if r.is_empty() {
             return false;
@@ -254,7 +251,7 @@ impl Covers {
         let q = project(p, self.axis[tri as usize] as usize);
         let test = |k: usize| {
             let s = self.sides[k];
-            (s == Vec3::ZERO || n.is_some_and(|n| s.dot(n) > 0.0)) && inside(q, &self.shapes[k])
+            (s == Vec3::ZERO || s.dot(n) > 0.0) && inside(q, &self.shapes[k])
         };
         match self.grid_of.get(tri as usize) {
             Some(&g) if g != u32::MAX => {
@@ -381,6 +378,16 @@ fn drop_axis(n: Vec3) -> usize {
     }
 }
 
+/// 64 stratified points on the triangle `v` (8 × 8 strata of the square mapped by the square
+/// root warp).
+fn stratified(v: &[Vec3; 3]) -> impl Iterator<Item = Vec3> + '_ {
+    (0..64).map(move |k| {
+        let (u1, u2) = (((k / 8) as f32 + 0.5) / 8.0, ((k % 8) as f32 + 0.5) / 8.0);
+        let s = u1.sqrt();
+        v[0] * (1.0 - s) + v[1] * (s * (1.0 - u2)) + v[2] * (s * u2)
+    })
+}
+
 fn project(p: Vec3, axis: usize) -> Vec2 {
     match axis {
         0 => Vec2::new(p.y, p.z),
@@ -390,6 +397,13 @@ fn project(p: Vec3, axis: usize) -> Vec2 {
 }
 
 /// Point `q` strictly inside triangle `v` (either winding).
+/// `q` inside the triangle `v` or within `tol` of it (either orientation).
+fn inside_or_on(q: Vec2, v: &[Vec2; 3], tol: f32) -> bool {
+    let d = |a: Vec2, b: Vec2| (b - a).perp_dot(q - a) / (b - a).length().max(f32::MIN_POSITIVE);
+    let e = [d(v[0], v[1]), d(v[1], v[2]), d(v[2], v[0])];
+    e.iter().all(|&x| x >= -tol) || e.iter().all(|&x| x <= tol)
+}
+
 fn inside(q: Vec2, v: &[Vec2; 3]) -> bool {
     let s = |a: Vec2, b: Vec2| (b - a).perp_dot(q - a);
     let (d0, d1, d2) = (s(v[0], v[1]), s(v[1], v[2]), s(v[2], v[0]));

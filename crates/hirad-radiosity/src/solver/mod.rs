@@ -71,9 +71,9 @@ pub struct Solution {
     pub root_irradiance: Vec<DVec3>,
     /// Statistics of the solve.
     pub stats: SolveStats,
-    /// Sorted leaf elements with no open part whose centroid lies under a coplanar face that
-    /// owns the place (a duplicated face under its original): what a viewer sees there is
-    /// that face, and the output mesh leaves these out.
+    /// Sorted leaf elements with no open part that lie within one coplanar face that owns the
+    /// place (a duplicated face under its original): what a viewer sees there is that face,
+    /// and the output mesh leaves these out.
     pub under_face: Vec<u32>,
 }
 
@@ -536,9 +536,7 @@ impl Solver<'_> {
                 e.kind == Kind::Surface
                     && e.num_children == 0
                     && self.el.open[id as usize] == 0.0
-                    && self
-                        .covers
-                        .under_coplanar(e.tri, (e.verts[0] + e.verts[1] + e.verts[2]) / 3.0)
+                    && self.covers.within_coplanar_owner(e.tri, &e.verts)
             })
             .collect();
         Ok(Solution {
