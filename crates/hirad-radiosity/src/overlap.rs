@@ -222,7 +222,7 @@ impl Covers {
     }
 
     /// True when the triangle `v` (a part of input triangle `tri`) lies within one coplanar
-    /// triangle that owns the place (up to [`REL_TOL`] of its longest edge): a duplicated face
+    /// triangle that owns the place (up to 10⁻⁴ of its longest edge): a duplicated face
     /// under its original. Points a ray can reach between several owners do not count.
     pub fn within_coplanar_owner(&self, tri: u32, v: &[Vec3; 3]) -> bool {
         let axis = self.axis[tri as usize] as usize;
