@@ -1,6 +1,6 @@
 //! Geometry primitives shared by every module: axis-aligned boxes and triangle helpers.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// Axis-aligned bounding box. The empty box has `min = +inf`, `max = -inf`.
@@ -183,9 +183,108 @@ pub fn triangle_area_f64(a: Vec3, b: Vec3, c: Vec3) -> f64 {
     0.5 * (b - a).cross(c - a).length()
 }
 
+/// The coordinate a plane of normal `n` is projected along: that of `n`'s largest component,
+/// so that the projection keeps the most area.
+#[inline]
+pub fn drop_axis(n: Vec3) -> usize {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// `p` projected along coordinate `axis` ([`drop_axis`]).
+#[inline]
+pub fn project(p: Vec3, axis: usize) -> Vec2 {
+    match axis {
+        0 => Vec2::new(p.y, p.z),
+        1 => Vec2::new(p.z, p.x),
+        _ => Vec2::new(p.x, p.y),
+    }
+}
+
+/// Two triangles of one plane, projected ([`project`]), overlap by more than `tol` along every
+/// separating axis (their edge normals): touching along an edge or a corner, or a degenerate
+/// edge, is not an overlap.
+pub fn triangles_overlap(a: &[Vec2; 3], b: &[Vec2; 3], tol: f32) -> bool {
+    for tri in [a, b] {
+        for e in 0..3 {
+            let d = tri[(e + 1) % 3] - tri[e];
+            let axis = Vec2::new(-d.y, d.x);
+            let len = axis.length();
+            if len <= 0.0 {
+                return false;
+            }
+            let axis = axis / len;
+            let span = |t: &[Vec2; 3]| {
+                let p = t.map(|v| v.dot(axis));
+                (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]))
+            };
+            let (a0, a1) = span(a);
+            let (b0, b1) = span(b);
+            if a1.min(b1) - a0.max(b0) <= tol {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn triangles_overlap_in_their_plane_not_along_a_shared_edge() {
+        let v = |x: f32, y: f32| Vec2::new(x, y);
+        let a = [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)];
+        for (b, overlap, what) in [
+            (
+                [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)],
+                false,
+                "the square's other half",
+            ),
+            ([a[1], a[2], a[0]], true, "itself in another vertex order"),
+            (
+                [v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)],
+                true,
+                "the other diagonal's half",
+            ),
+            (
+                [v(0.6, 0.2), v(0.8, 0.2), v(0.8, 0.4)],
+                true,
+                "a small one inside",
+            ),
+            (
+                [v(1.1, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
+                false,
+                "one beyond a vertex",
+            ),
+            ([v(2.0, 2.0), v(3.0, 2.0), v(2.0, 3.0)], false, "disjoint"),
+            (
+                [v(0.999, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+                true,
+                "across an edge by 0.001",
+            ),
+            (
+                [v(0.99995, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
+                false,
+                "within the tolerance",
+            ),
+        ] {
+            assert_eq!(triangles_overlap(&a, &b, 1e-4), overlap, "{what}");
+            assert_eq!(triangles_overlap(&b, &a, 1e-4), overlap, "{what}, swapped");
+        }
+        // Projected along the normal's largest component, a tilted plane keeps its overlaps.
+        let n = Vec3::new(0.2, -0.3, 0.9).normalize();
+        assert_eq!(drop_axis(n), 2);
+        assert_eq!(drop_axis(Vec3::new(0.0, -1.0, 0.5)), 1);
+        assert_eq!(project(Vec3::new(1.0, 2.0, 3.0), 1), v(3.0, 1.0));
+    }
 
     #[test]
     fn box_basics() {

@@ -15,7 +15,7 @@
 use super::shut::ShutMasks;
 use glam::{Vec2, Vec3};
 use hirad_accel::cluster::ClusterTree;
-use hirad_core::geom::{longest_edge, Aabb};
+use hirad_core::geom::{drop_axis, longest_edge, project, triangles_overlap, Aabb};
 use hirad_scene::Scene;
 use rayon::prelude::*;
 
@@ -114,10 +114,7 @@ impl Covers {
     /// `two_sided`) always do.
     pub fn build(scene: &Scene, tree: &ClusterTree, two_sided: bool) -> Covers {
         let n = scene.num_triangles();
-        let mut object_area = vec![0.0f64; scene.objects.len().max(1)];
-        for t in 0..n {
-            object_area[scene.tri_object[t] as usize] += scene.areas[t] as f64;
-        }
+        let object_area = scene.object_areas();
         let rank = |t: u32| {
             let t = t as usize;
             (
@@ -326,7 +323,7 @@ fn covering(
             }
         };
         let axis = drop_axis(ni);
-        if overlap(
+        if triangles_overlap(
             &vi.map(|p| project(p, axis)),
             &vj.map(|p| project(p, axis)),
             tol,
@@ -367,17 +364,6 @@ fn cover_grid(own: &[Vec2; 3], shapes: &[[Vec2; 3]], items: &mut Vec<u32>) -> Co
     grid
 }
 
-fn drop_axis(n: Vec3) -> usize {
-    let a = n.abs();
-    if a.x >= a.y && a.x >= a.z {
-        0
-    } else if a.y >= a.z {
-        1
-    } else {
-        2
-    }
-}
-
 /// 64 stratified points on the triangle `v` (8 × 8 strata of the square mapped by the square
 /// root warp).
 fn stratified(v: &[Vec3; 3]) -> impl Iterator<Item = Vec3> + '_ {
@@ -388,15 +374,6 @@ fn stratified(v: &[Vec3; 3]) -> impl Iterator<Item = Vec3> + '_ {
     })
 }
 
-fn project(p: Vec3, axis: usize) -> Vec2 {
-    match axis {
-        0 => Vec2::new(p.y, p.z),
-        1 => Vec2::new(p.z, p.x),
-        _ => Vec2::new(p.x, p.y),
-    }
-}
-
-/// Point `q` strictly inside triangle `v` (either winding).
 /// `q` inside the triangle `v` or within `tol` of it (either orientation).
 fn inside_or_on(q: Vec2, v: &[Vec2; 3], tol: f32) -> bool {
     let d = |a: Vec2, b: Vec2| (b - a).perp_dot(q - a) / (b - a).length().max(f32::MIN_POSITIVE);
@@ -404,36 +381,11 @@ fn inside_or_on(q: Vec2, v: &[Vec2; 3], tol: f32) -> bool {
     e.iter().all(|&x| x >= -tol) || e.iter().all(|&x| x <= tol)
 }
 
+/// Point `q` strictly inside triangle `v` (either winding).
 fn inside(q: Vec2, v: &[Vec2; 3]) -> bool {
     let s = |a: Vec2, b: Vec2| (b - a).perp_dot(q - a);
     let (d0, d1, d2) = (s(v[0], v[1]), s(v[1], v[2]), s(v[2], v[0]));
     (d0 > 0.0 && d1 > 0.0 && d2 > 0.0) || (d0 < 0.0 && d1 < 0.0 && d2 < 0.0)
-}
-
-/// Two triangles overlap by more than `tol` along every separating axis (their edge normals):
-/// touching along an edge or a corner is not an overlap.
-fn overlap(a: &[Vec2; 3], b: &[Vec2; 3], tol: f32) -> bool {
-    for tri in [a, b] {
-        for e in 0..3 {
-            let d = tri[(e + 1) % 3] - tri[e];
-            let axis = Vec2::new(-d.y, d.x);
-            let len = axis.length();
-            if len <= 0.0 {
-                return false;
-            }
-            let axis = axis / len;
-            let span = |t: &[Vec2; 3]| {
-                let p = t.map(|v| v.dot(axis));
-                (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]))
-            };
-            let (a0, a1) = span(a);
-            let (b0, b1) = span(b);
-            if a1.min(b1) - a0.max(b0) <= tol {
-                return false;
-            }
-        }
-    }
-    true
 }
 
 #[cfg(test)]
@@ -507,19 +459,14 @@ mod tests {
     }
 
     #[test]
-    fn overlap_needs_positive_area() {
+    fn points_inside_a_triangle() {
         let t = |p: [[f32; 2]; 3]| p.map(|q| Vec2::new(q[0], q[1]));
-        let a = t([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
-        // Shares the hypotenuse only.
-        let b = t([[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
-        assert!(!overlap(&a, &b, 1e-5));
-        // A small triangle inside.
         let c = t([[0.1, 0.1], [0.3, 0.1], [0.1, 0.3]]);
-        assert!(overlap(&a, &c, 1e-5));
         assert!(inside(Vec2::new(0.15, 0.15), &c));
         assert!(!inside(Vec2::new(0.5, 0.4), &c));
-        // Disjoint.
-        let d = t([[2.0, 2.0], [3.0, 2.0], [2.0, 3.0]]);
-        assert!(!overlap(&a, &d, 1e-5));
+        // On an edge: not strictly inside, but within any tolerance.
+        let on = Vec2::new(0.2, 0.1);
+        assert!(!inside(on, &c) && inside_or_on(on, &c, 1e-6));
+        assert!(!inside_or_on(Vec2::new(0.2, 0.09), &c, 1e-3));
     }
 }

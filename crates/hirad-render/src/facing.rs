@@ -7,10 +7,10 @@
 //! seen once). A light sample on a face counts only where that face is the one seen, so that
 //! a duplicated lamp sends its light once, as a ray onto it sees it once.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use hirad_accel::cluster::ClusterTree;
 use hirad_accel::ray::{Hit, RayCaster};
-use hirad_core::geom::longest_edge;
+use hirad_core::geom::{drop_axis, longest_edge, project, triangles_overlap};
 use hirad_scene::Scene;
 use rayon::prelude::*;
 
@@ -41,12 +41,11 @@ impl Facing {
             .filter(|&i| has_coincident(scene, tree, i))
             .collect::<Vec<u32>>();
         tracing::debug!("{} triangles with a coincident one", ids.len());
-        let mut object_area = vec![0.0f64; scene.objects.len().max(1)];
-        if !ids.is_empty() {
-            for t in 0..scene.num_triangles() {
-                object_area[scene.tri_object[t] as usize] += scene.areas[t] as f64;
-            }
-        }
+        let object_area = if ids.is_empty() {
+            Vec::new()
+        } else {
+            scene.object_areas()
+        };
         Facing { ids, object_area }
     }
 
@@ -117,6 +116,8 @@ fn has_coincident(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
     let bb = scene.tri_bbox(i as usize);
     let grow = Vec3::splat(REL_TOL * longest_edge(&vi));
     let (lo, hi) = (bb.min - grow, bb.max + grow);
+    let axis = drop_axis(ni);
+    let pi = vi.map(|p| project(p, axis));
     tree.any_surface_near(lo, hi, |j| {
         if j == i
             || scene.areas[j as usize] <= 0.0
@@ -130,89 +131,6 @@ fn has_coincident(scene: &Scene, tree: &ClusterTree, i: u32) -> bool {
         vj.iter().all(|p| ni.dot(*p - vi[0]).abs() <= tol)
             && bj.max.cmpge(lo).all()
             && bj.min.cmple(hi).all()
-            && overlap_in_plane(ni, &vi, &vj, tol)
+            && triangles_overlap(&pi, &vj.map(|p| project(p, axis)), tol)
     })
-}
-
-/// Whether triangles `a` and `b`, lying in one plane of normal `n`, overlap there by more
-/// than `tol`: no edge direction of either separates their projections (the separating axis
-/// test, with a gap of up to `tol` counted as separating).
-fn overlap_in_plane(n: Vec3, a: &[Vec3; 3], b: &[Vec3; 3], tol: f32) -> bool {
-    let m = n.abs();
-    let drop = if m.x >= m.y && m.x >= m.z {
-        0
-    } else if m.y >= m.z {
-        1
-    } else {
-        2
-    };
-    let p = |v: Vec3| {
-        let c = v.to_array();
-        Vec2::new(c[(drop + 1) % 3], c[(drop + 2) % 3])
-    };
-    let (a, b) = (a.map(p), b.map(p));
-    let range = |t: &[Vec2; 3], axis: Vec2| {
-        let d = t.map(|v| v.dot(axis));
-        (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
-    };
-    let edges_of = [a, b];
-    edges_of.iter().all(|t| {
-        (0..3).all(|k| {
-            let e = t[(k + 1) % 3] - t[k];
-            let len = e.length();
-            if len == 0.0 {
-                return true;
-            }
-            let axis = e.perp() / len;
-            let (a0, a1) = range(&a, axis);
-            let (b0, b1) = range(&b, axis);
-            a1.min(b1) - a0.max(b0) > tol
-        })
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn faces_overlap_in_their_plane_not_along_a_shared_edge() {
-        let v = |x: f32, y: f32| Vec3::new(x, y, 0.0);
-        let a = [v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0)];
-        for (b, overlap, what) in [
-            (
-                [v(0.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)],
-                false,
-                "the square's other half",
-            ),
-            ([a[1], a[2], a[0]], true, "itself in another vertex order"),
-            (
-                [v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)],
-                true,
-                "the other diagonal's half",
-            ),
-            (
-                [v(0.6, 0.2), v(0.8, 0.2), v(0.8, 0.4)],
-                true,
-                "a small one inside",
-            ),
-            (
-                [v(1.1, 0.0), v(2.0, 0.0), v(2.0, 1.0)],
-                false,
-                "one beyond a vertex",
-            ),
-            (
-                [v(0.999, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
-                true,
-                "across an edge by 0.001",
-            ),
-            (
-                [v(0.99995, 0.5), v(2.0, 0.5), v(2.0, 0.6)],
-                false,
-                "within the tolerance",
-            ),
-        ] {
-            assert_eq!(overlap_in_plane(Vec3::Z, &a, &b, 1e-4), overlap, "{what}");
-        }
-    }
 }

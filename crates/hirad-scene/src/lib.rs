@@ -417,6 +417,15 @@ impl Scene {
         &self.materials[self.tri_material[i] as usize]
     }
 
+    /// Surface area of each object (one entry when the scene names none).
+    pub fn object_areas(&self) -> Vec<f64> {
+        let mut a = vec![0.0f64; self.objects.len().max(1)];
+        for (t, &o) in self.tri_object.iter().enumerate() {
+            a[o as usize] += self.areas[t] as f64;
+        }
+        a
+    }
+
     /// Triangle `i` has a back face in a solve that is two-sided when `two_sided` (the file's
     /// or `--two-sided`), or whose material is ([`Scene::two_sided_materials`]).
     #[inline]

@@ -98,12 +98,20 @@ pub fn curves(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<&SolveRecord>> {
     m
 }
 
-/// Each strategy's error–ε curve as `(ε, error)` points, largest ε first.
-fn error_eps(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
+/// Each strategy's curve as `(x, error)` points, `x` read from each solve, largest ε first.
+fn error_by(
+    solves: &[SolveRecord],
+    x: impl Fn(&SolveRecord) -> f64,
+) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
     curves(solves)
         .into_iter()
-        .map(|(s, v)| (s, v.iter().map(|r| (r.eps, r.error())).collect()))
+        .map(|(s, v)| (s, v.iter().map(|r| (x(r), r.error())).collect()))
         .collect()
+}
+
+/// Each strategy's error–ε curve as `(ε, error)` points, largest ε first.
+fn error_eps(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
+    error_by(solves, |r| r.eps)
 }
 
 /// Monotonicity of each strategy's error–ε curve.
@@ -137,18 +145,10 @@ pub fn is_monotone(m: &Monotonicity) -> bool {
     m.rises == 0 || (m.rises <= 1 && m.kendall_tau.is_some_and(|t| t >= 0.8))
 }
 
-/// Each strategy's sweep as `(solve seconds, error)` points.
-fn time_error(solves: &[SolveRecord]) -> BTreeMap<Strategy, Vec<(f64, f64)>> {
-    curves(solves)
-        .into_iter()
-        .map(|(s, v)| (s, v.iter().map(|r| (r.solve_s, r.error())).collect()))
-        .collect()
-}
-
 /// Errors at which the sweeps are compared ([`reach::levels`], four of them), and per strategy
 /// the seconds its sweep needs to reach each ([`reach::time_to`]; `None`: never reached).
 pub fn time_to_levels(solves: &[SolveRecord]) -> (Vec<f64>, BTreeMap<Strategy, Vec<Option<f64>>>) {
-    let te = time_error(solves);
+    let te = error_by(solves, |r| r.solve_s);
     let levels = reach::levels(te.values().map(Vec::as_slice), 4);
     let times = te
         .iter()
@@ -181,7 +181,8 @@ pub fn objr_targets(d: &ReportData) -> Vec<Target> {
     }
     let mut out = Vec::new();
     if has_solves {
-        let (measured, met) = match reference_noise(d) {
+        let noise = reference_noise(d);
+        let (measured, met) = match noise {
             Some(n) => {
                 let above = rises_above_noise(&d.solves, n);
                 let k = above.get(&objr).copied().unwrap_or(0);
@@ -206,7 +207,6 @@ pub fn objr_targets(d: &ReportData) -> Vec<Target> {
             met,
         });
         let (levels, times) = time_to_levels(&d.solves);
-        let noise = reference_noise(d);
         let lowest = curves(&d.solves)
             .get(&objr)
             .and_then(|v| v.iter().map(|r| r.error()).min_by(f64::total_cmp));
