@@ -22,7 +22,7 @@ use crate::cluster::ClusterTree;
 use glam::Vec3;
 use hirad_scene::Scene;
 pub use layout::Boxes;
-use layout::{Group, Layout, Ray4};
+use layout::{is_leaf, Layout, Nodes8, Slab8, NONE};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 pub(crate) use stack::Stack;
@@ -129,7 +129,7 @@ enum Step {
 #[derive(Clone, Copy)]
 struct Lane {
     r: RayPre,
-    r4: Ray4,
+    slab: Slab8,
     tmin: f32,
     tmax: f32,
     seg: u32,
@@ -141,97 +141,50 @@ struct Lane {
 
 impl Lane {
     /// Visit the next node of this ray (the same work as one iteration of
-    /// `RayCaster::occluded_loop`).
+    /// `RayCaster::occluded_loop`, in the same order).
     #[inline(always)]
-    fn step<const WIDE: bool>(&mut self, l: &Layout) -> Step {
+    fn step<const AVX: bool>(&mut self, n8: &Nodes8, l: &Layout) -> Step {
         if self.len == 0 {
             return Step::Miss;
         }
         self.len -= 1;
-        let n = self.stack[self.len as usize];
-        let (mut ts, mut nt, g0, ng) = l.node(n);
-        let mut all8 = 0;
-        #[cfg(target_arch = "x86_64")]
-        if WIDE && ng == 2 {
-            // SAFETY: `WIDE` is set only under AVX2 (`stream_avx2`).
-            all8 = unsafe {
-                self.r4.test8(
-                    (&l.groups[g0], &l.groups[g0 + 1]),
-                    (l.faces[g0], l.faces[g0 + 1]),
-                    self.tmin,
-                    self.tmax,
-                )
-            }
-            .0;
-        }
-        for (j, (g, f)) in l.groups[g0..g0 + ng]
-            .iter()
-            .zip(&l.faces[g0..g0 + ng])
-            .enumerate()
-        {
-            let all = if WIDE && ng == 2 {
-                all8 >> (4 * j) & 0xF
-            } else {
-                self.r4.test(g, f, self.tmin, self.tmax).0
-            };
-            let (mask, run) = g.split_eager(all);
-            let rank = PUSH_ORDER[(mask | (g.eager as u32 & 0xF0 & mask << 4)) as usize];
-            if let Some(run) = run {
-                (ts, nt) = run;
-            }
-            let len = self.len as usize;
-            if len + 4 > LANE_STACK {
-                if mask == 0 {
-                    continue;
+        let r = self.stack[self.len as usize];
+        let run = if is_leaf(r) {
+            n8.leaf(r)
+        } else {
+            let n = &n8.nodes[r as usize];
+            let (mask, _) = self.slab.test::<AVX>(n, self.tmin, self.tmax);
+            let mut len = self.len as usize;
+            if len + 9 > LANE_STACK {
+                if mask != 0 || n.more != NONE {
+                    return Step::Overflow;
                 }
-                return Step::Overflow;
+            } else {
+                if n.more != NONE {
+                    self.stack[len] = n.more;
+                    len += 1;
+                }
+                // Every lane is stored; the top moves past the hit ones (the highest on top).
+                for (i, &c) in n.child.iter().enumerate() {
+                    self.stack[len] = c;
+                    len += (mask >> i & 1) as usize;
+                }
+                self.len = len as u32;
             }
-            // Lanes not hit land above the new top, where they are overwritten later.
-            for (&r, &c) in rank.iter().zip(&g.child) {
-                self.stack[len + (r as usize & 3)] = c;
-            }
-            self.len += mask.count_ones();
-        }
-        if nt > 0
-            && l.any_hit::<WIDE, _>(&self.r, (ts, nt), self.tmin, self.tmax, &mut 0, &|_| false)
+            (n.tri_start as usize, n.num_tris as usize)
+        };
+        if run.1 > 0
+            && l.any_hit::<AVX, _>(&self.r, run, self.tmin, self.tmax, &mut 0, &|_| false)
                 .is_some()
         {
             return Step::Hit;
         }
         if self.len > 0 {
-            l.prefetch(self.stack[self.len as usize - 1]);
+            n8.prefetch(l, self.stack[self.len as usize - 1]);
         }
         Step::Continue
     }
 }
-
-/// Stack positions of the four lanes of a group for occlusion, by `mask | first << 4`
-/// (`mask`: lanes hit, `first`: those of them visited first): the hit lanes in lane order, those
-/// of `first` after the others (so that the highest of `first` ends on top, as
-/// [`descend`] orders them), then the lanes not hit, which land above the new top.
-const PUSH_ORDER: [[u8; 4]; 256] = {
-    let mut t = [[0u8; 4]; 256];
-    let mut k = 0;
-    while k < 256 {
-        let (mask, first) = (k as u32 & 0xF, k as u32 >> 4);
-        let mut pos = 0u8;
-        let sets = [mask & !first, mask & first, !mask & 0xF];
-        let mut s = 0;
-        while s < 3 {
-            let mut lane = 0;
-            while lane < 4 {
-                if sets[s] >> lane & 1 == 1 {
-                    t[k][lane] = pos;
-                    pos += 1;
-                }
-                lane += 1;
-            }
-            s += 1;
-        }
-        k += 1;
-    }
-    t
-};
 
 /// Entry of the traversal stack: node reference and entry distance of its box.
 #[derive(Clone, Copy)]
@@ -244,47 +197,45 @@ struct Entry {
 ///
 /// [`RayCaster::new`] lays the tree out for traversal (`ray/layout/`; with tight boxes, inner
 /// children pulled up into their parent's lanes, up to eight, as wide BVHs collapse binary
-/// ones): the children of a node in groups of four boxes in structure-of-arrays form
-/// (one 4-wide SIMD slab test per group, done by the parent), leaves encoded in their parent's
-/// child reference, the triangles attached to each node (inner nodes included) in packets of
-/// four for a SIMD edge-function test, everything in depth-first pre-order. Boxes may overlap
-/// and a node may have any number of children. The triangle test is watertight
-/// ([`watertight`]; the packet test computes the same f32 edge functions, and the scalar test
-/// with its f64 hit distance decides every candidate); the box test is conservative
-/// (relative slack on the far distance, NaN-safe for rays lying in a box plane) and the boxes
-/// contain their contents exactly: tight around them by default (a node's own triangles
-/// behind boxes of their own, a long run of them split into pieces, a node holding only one
-/// child passed through), or the strategy's boxes grown to their contents
-/// ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a box flat along
-/// an axis in whose plane the ray lies is skipped, as its contents are coplanar with the ray
-/// and the watertight test never reports them (`Ray4::flat_in_plane`: a segment along a
-/// floor no longer visits every floor cell it passes).
+/// ones): each node as one [`Node8`](layout::Nodes8) of up to eight child boxes with
+/// contiguous planes (one 8-wide slab test per node; a node of more lanes continues in a
+/// second one), leaves encoded in their parent's child reference, the triangles attached to
+/// each node (inner nodes included) in packets of four for a SIMD edge-function test,
+/// everything in depth-first order. Boxes may overlap and a node may have any number of
+/// children. The triangle test is watertight ([`watertight`]; the packet test computes the
+/// same f32 edge functions, and the scalar test with its f64 hit distance decides every
+/// candidate); the box test is conservative (relative slack on the far distance, NaN-safe for
+/// rays lying in a box plane) and the boxes contain their contents exactly: tight around them
+/// by default (a node's own triangles behind boxes of their own, a long run of them split into
+/// pieces, a node holding only one child passed through), or the strategy's boxes grown to
+/// their contents ([`Boxes::Cluster`], the paper's traversal; `raybench --boxes cluster`); a
+/// box flat along an axis in whose plane the ray lies is skipped, as its contents are coplanar
+/// with the ray and the watertight test never reports them (`Slab8::flat_in_plane`: a segment
+/// along a floor no longer visits every floor cell it passes).
 ///
 /// Where the CPU has AVX2 the queries run a copy of the traversal compiled for it, which tests
-/// the two groups of a node in one 8-wide pass (the same f32 operations per lane, hence the
-/// same masks) and decides a packet of four triangles at once, hit distances in 4-wide f64
-/// (`watertight::hits4_avx`, the scalar test's operations). An occlusion
-/// query takes the hit children of a node in lane order, not by distance (as Embree's
-/// occlusion rays do: the sort cost more than the visits it saved, `docs/perf-log.md`
-/// 2026-12-05 (23)), the layout having ordered each node's lanes by their chance of blocking a
-/// ray per cost (`occlusion_order` in `ray/layout/build.rs`); the last is visited next without
-/// going through the stack; pieces of a
-/// node's run marked to be visited first are taken before the other lanes. Closest-hit
-/// queries push every hit child, nearest on top, and skip entries farther than the current
-/// hit. Batch occlusion ([`RayCaster::occluded_stream`], used by
-/// [`RayCaster::count_occluded`] and [`RayCaster::occluded_batch`]) keeps [`STREAM`] rays in
-/// flight per thread and visits one node of each in turn, so that the memory latency of one
-/// ray's next node (prefetched at the end of the step before) overlaps with work on the
-/// others; it places the hit children on its stack at positions looked up without branches
-/// (`PUSH_ORDER`: the order of the single-ray traversal). Counters ([`RayStats`]) are
-/// compiled in only for the `*_stats` entry points (const generic), so the plain queries carry
-/// no counting cost.
+/// a node's eight boxes in one AVX pass (the same f32 operations per lane, hence the same
+/// masks) and decides a packet of four triangles at once, hit distances in 4-wide f64
+/// (`watertight::hits4_avx`, the scalar test's operations). An occlusion query takes the hit
+/// children of a node in lane order, not by distance (as Embree's occlusion rays do: the sort
+/// cost more than the visits it saved, `docs/perf-log.md` 2026-12-05 (23)), the lanes having
+/// been ordered by their chance of blocking a ray per cost (`occlusion_order` in
+/// `ray/layout/build.rs`; a node's run tested as soon as its box is hit, and pieces of a run
+/// marked to be visited first, come first); the highest hit lane is visited next without going
+/// through the stack. Closest-hit queries push every hit child, nearest on top, and skip
+/// entries farther than the current hit. Batch occlusion ([`RayCaster::occluded_stream`],
+/// used by [`RayCaster::count_occluded`] and [`RayCaster::occluded_batch`]) keeps [`STREAM`]
+/// rays in flight per thread and visits one node of each in turn, in the single-ray order, so
+/// that the memory latency of one ray's next node (prefetched at the end of the step before)
+/// overlaps with work on the others. Counters ([`RayStats`]) are compiled in only for the
+/// `*_stats` entry points (const generic), so the plain queries carry no counting cost.
 pub struct RayCaster<'a> {
     /// The scene whose triangles are tested.
     pub scene: &'a Scene,
     /// The cluster tree traversed (built for `scene`).
     pub tree: &'a ClusterTree,
     layout: Layout,
+    nodes: Nodes8,
 }
 
 /// Stack size kept on the machine stack.
@@ -299,22 +250,29 @@ impl<'a> RayCaster<'a> {
     /// Prepare the traversal data of `tree`, testing the boxes `boxes` (same results either
     /// way; [`Boxes::Cluster`] measures the strategy's own boxes).
     pub fn with_boxes(scene: &'a Scene, tree: &'a ClusterTree, boxes: Boxes) -> Self {
+        let mut layout = Layout::new(scene, tree, boxes);
+        let nodes = Nodes8::new(&layout);
+        // The groups were the build's form of the nodes; the queries read `nodes`.
+        layout.groups = Vec::new();
+        layout.faces = Vec::new();
         Self {
             scene,
             tree,
-            layout: Layout::new(scene, tree, boxes),
+            layout,
+            nodes,
         }
     }
 
     /// Bytes used by the traversal layout.
     pub fn memory_bytes(&self) -> usize {
-        self.layout.memory_bytes()
+        self.layout.memory_bytes() + self.nodes.memory_bytes()
     }
 
-    /// Check the laid-out tree's references (tests): every lane with a box reaches a group or
+    /// Check the laid-out tree's references (tests): every lane with a box reaches a node or
     /// a triangle run in range, and every triangle is reached.
     pub fn validate(&self) -> std::result::Result<(), String> {
-        self.layout.validate(self.scene.num_triangles())
+        self.nodes
+            .validate(&self.layout, self.scene.num_triangles())
     }
 
     /// True when some triangle is hit for `t ∈ [tmin, tmax]`.
@@ -450,17 +408,18 @@ impl<'a> RayCaster<'a> {
         self.stream_impl::<true>(segs, out)
     }
 
-    /// [`RayCaster::occluded_stream`]; `WIDE` as in [`RayCaster::occluded_loop`].
+    /// [`RayCaster::occluded_stream`]; `AVX` as in [`RayCaster::occluded_loop`].
     #[inline(always)]
-    fn stream_impl<const WIDE: bool>(&self, segs: &[Segment], out: &mut [bool]) {
+    fn stream_impl<const AVX: bool>(&self, segs: &[Segment], out: &mut [bool]) {
         let l = &self.layout;
-        let Some(root) = l.root else {
+        let n8 = &self.nodes;
+        let Some(root) = n8.root else {
             out.fill(false);
             return;
         };
         let idle = Lane {
             r: RayPre::new(Vec3::ZERO, Vec3::X).expect("a valid ray"),
-            r4: Ray4::default(),
+            slab: Slab8::default(),
             tmin: 0.0,
             tmax: 0.0,
             seg: 0,
@@ -487,8 +446,8 @@ impl<'a> RayCaster<'a> {
                 if r.slab(&l.root_box, s.tmin, s.tmax).is_none() {
                     continue;
                 }
-                l.prefetch(root);
-                lane.r4.set(&r);
+                n8.prefetch(l, root);
+                lane.slab = Slab8::new(&r);
                 lane.r = r;
                 lane.tmin = s.tmin;
                 lane.tmax = s.tmax;
@@ -510,7 +469,7 @@ impl<'a> RayCaster<'a> {
                 if !lane.busy {
                     continue;
                 }
-                match lane.step::<WIDE>(l) {
+                match lane.step::<AVX>(n8, l) {
                     Step::Continue => continue,
                     Step::Hit => out[lane.seg as usize] = true,
                     Step::Miss => {}
@@ -622,8 +581,7 @@ impl<'a> RayCaster<'a> {
         skip: &F,
         hint: Option<u32>,
     ) -> Option<u32> {
-        let l = &self.layout;
-        let root = l.root?;
+        let root = self.nodes.root?;
         let r = RayPre::new(origin, dir)?;
         if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return None;
@@ -637,7 +595,7 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        r.slab(&l.root_box, tmin, tmax)?;
+        r.slab(&self.layout.root_box, tmin, tmax)?;
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
             // SAFETY: the CPU has AVX2 (checked above).
@@ -646,8 +604,8 @@ impl<'a> RayCaster<'a> {
         self.occluded_loop::<STATS, false, F>(&r, root, tmin, tmax, stats, skip)
     }
 
-    /// [`RayCaster::occluded_loop`] compiled for AVX2, with 8-wide box tests and the packet
-    /// test of `watertight::hits4_avx`.
+    /// [`RayCaster::occluded_loop`] compiled for AVX2, with the 8-wide box test in one pass and
+    /// the packet test of `watertight::hits4_avx`.
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -665,11 +623,12 @@ impl<'a> RayCaster<'a> {
         self.occluded_loop::<STATS, true, F>(r, root, tmin, tmax, stats, skip)
     }
 
-    /// The traversal of an occlusion query from `root`, whose box the ray hits. `WIDE`: the
-    /// two groups of a node are tested in one AVX pass and packets of four triangles decided
-    /// at once (only in [`RayCaster::occluded_avx2`]).
+    /// The traversal of an occlusion query from `root`, whose box the ray hits: the highest
+    /// hit lane of a node is visited next, the others are pushed without a branch per lane
+    /// (`Stack::push8`). `AVX`: the box test in one AVX pass and packets of four triangles
+    /// decided at once (only in [`RayCaster::occluded_avx2`]).
     #[inline(always)]
-    fn occluded_loop<const STATS: bool, const WIDE: bool, F: Fn(u32) -> bool>(
+    fn occluded_loop<const STATS: bool, const AVX: bool, F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
         root: u32,
@@ -678,100 +637,48 @@ impl<'a> RayCaster<'a> {
         stats: &mut RayStats,
         skip: &F,
     ) -> Option<u32> {
-        let l = &self.layout;
-        let r4 = Ray4::new(r);
+        let (l, n8) = (&self.layout, &self.nodes);
+        let slab = Slab8::new(r);
         let mut stack: Stack<u32, STACK> = Stack::new();
         let mut cur = root;
         loop {
-            if STATS {
-                stats.nodes += l.is_node(cur) as u64;
-            }
-            let (mut ts, mut nt, g0, ng) = l.node(cur);
-            let mut next = None;
-            if ng == 0 {
-                // A leaf or a run: only triangles.
-            } else if ng <= 2 {
-                // One decision over the node's (up to eight) lanes, in lane order.
-                let mut mask = 0u32;
-                let mut first = 0u32;
-                let gs = &l.groups[g0..g0 + ng];
-                let ga = &gs[0];
-                // The group after the first (the layout ends with an empty group) is tested
-                // whatever node it belongs to, so that its loads do not wait for the group
-                // count; its lanes count only for a node of two groups (a node of one is tested
-                // as two, the second masked out).
-                let two = ng == 2;
-                let (g1, f1) = (&l.groups[g0 + 1], l.faces[g0 + 1]);
-                let gb = std::hint::select_unpredictable(two, g1, &Group::EMPTY);
-                let lanes = std::hint::select_unpredictable(two, 0xFF, 0xF);
-                let all = lanes
-                    & if WIDE {
-                        #[cfg(target_arch = "x86_64")]
-                        // SAFETY: `WIDE` is set only under AVX2 (`occluded_avx2`).
-                        let m = unsafe { r4.test8((ga, g1), (l.faces[g0], f1), tmin, tmax) }.0;
-                        #[cfg(not(target_arch = "x86_64"))]
-                        let m = unreachable!("the AVX2 copy exists only on x86_64");
-                        m
-                    } else {
-                        r4.test(ga, &l.faces[g0], tmin, tmax).0
-                            | r4.test(g1, &f1, tmin, tmax).0 << 4
-                    };
+            let run = if is_leaf(cur) {
                 if STATS {
-                    stats.boxes += (ga.lanes + gb.lanes) as u64;
+                    stats.nodes += Nodes8::leaf_counts(cur) as u64;
                 }
-                let eager = ga.eager | gb.eager != 0;
-                if !eager {
-                    mask = all;
-                } else {
-                    for (j, g) in [ga, gb].into_iter().enumerate() {
-                        let (m, run) = g.split_eager(all >> (4 * j) & 0xF);
-                        if let Some(run) = run {
-                            (ts, nt) = run;
-                        }
-                        mask |= m << (4 * j);
-                        first |= ((g.eager >> 4) as u32) << (4 * j);
-                    }
-                }
-                if !eager {
-                    if mask != 0 {
-                        // The highest lane is visited next, read straight from its group; the
-                        // others are pushed without a branch per lane (in lane order, the
-                        // highest on top, as `descend` orders them) beside that read, off its
-                        // path (perf-log 29).
-                        let hi = 31 - mask.leading_zeros() as usize;
-                        stack.push8([&ga.child, &g1.child], mask & !(1 << hi));
-                        next = Some([ga, g1][hi >> 2].child[hi & 3]);
-                    }
-                } else {
-                    next = descend(&mut stack, l, mask, first, |i| gs[i >> 2].child[i & 3]);
-                }
+                n8.leaf(cur)
             } else {
-                for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
-                    if STATS {
-                        stats.boxes += g.lanes as u64;
-                    }
-                    let (all, _) = r4.test(g, f, tmin, tmax);
-                    let (mask, run) = g.split_eager(all);
-                    if let Some(run) = run {
-                        (ts, nt) = run;
-                    }
-                    if let Some(c) =
-                        descend(&mut stack, l, mask, (g.eager >> 4) as u32, |i| g.child[i])
-                    {
-                        stack.push(c);
+                let n = &n8.nodes[cur as usize];
+                if STATS {
+                    stats.nodes += n.counts as u64;
+                    stats.boxes += n.lanes as u64;
+                }
+                let (mask, _) = slab.test::<AVX>(n, tmin, tmax);
+                if n.more != NONE {
+                    stack.push(n.more);
+                }
+                if n.num_tris > 0 {
+                    let run = (n.tri_start as usize, n.num_tris as usize);
+                    let hit = l.any_hit::<AVX, _>(r, run, tmin, tmax, &mut stats.tris, skip);
+                    if hit.is_some() {
+                        return hit;
                     }
                 }
-            }
-            if nt > 0 {
-                let hit = l.any_hit::<WIDE, _>(r, (ts, nt), tmin, tmax, &mut stats.tris, skip);
+                if mask != 0 {
+                    let hi = 31 - mask.leading_zeros() as usize;
+                    stack.push8(&n.child, mask & !(1 << hi));
+                    cur = n.child[hi];
+                    continue;
+                }
+                (0, 0)
+            };
+            if run.1 > 0 {
+                let hit = l.any_hit::<AVX, _>(r, run, tmin, tmax, &mut stats.tris, skip);
                 if hit.is_some() {
                     return hit;
                 }
             }
-            cur = match next {
-                Some(c) => c,
-                None => stack.pop()?,
-            };
+            cur = stack.pop()?;
         }
     }
 
@@ -784,8 +691,7 @@ impl<'a> RayCaster<'a> {
         tmax: f32,
         stats: &mut RayStats,
     ) -> Option<Hit> {
-        let l = &self.layout;
-        let root = l.root?;
+        let root = self.nodes.root?;
         let r = RayPre::new(origin, dir)?;
         if tmin.is_nan() || tmax.is_nan() || tmin > tmax {
             return None;
@@ -793,7 +699,7 @@ impl<'a> RayCaster<'a> {
         if STATS {
             stats.boxes += 1;
         }
-        let t0 = r.slab(&l.root_box, tmin, tmax)?;
+        let t0 = r.slab(&self.layout.root_box, tmin, tmax)?;
         #[cfg(target_arch = "x86_64")]
         if has_avx2() {
             // SAFETY: the CPU has AVX2 (checked above).
@@ -802,8 +708,7 @@ impl<'a> RayCaster<'a> {
         self.closest_loop::<STATS, false>(&r, (root, t0), tmin, tmax, stats)
     }
 
-    /// [`RayCaster::closest_loop`] compiled for AVX2, with 8-wide box tests and the packet
-    /// test of `watertight::hits4_avx`.
+    /// [`RayCaster::closest_loop`] compiled for AVX2, as [`RayCaster::occluded_avx2`].
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -820,10 +725,11 @@ impl<'a> RayCaster<'a> {
         self.closest_loop::<STATS, true>(r, root, tmin, tmax, stats)
     }
 
-    /// The traversal of a closest-hit query from the root (its reference and entry distance).
-    /// `WIDE`: as in [`RayCaster::occluded_loop`].
+    /// The traversal of a closest-hit query from the root (its reference and entry distance):
+    /// every hit lane is pushed, nearest on top, and entries farther than the current hit are
+    /// skipped. `AVX`: as in [`RayCaster::occluded_loop`].
     #[inline(always)]
-    fn closest_loop<const STATS: bool, const WIDE: bool>(
+    fn closest_loop<const STATS: bool, const AVX: bool>(
         &self,
         r: &RayPre,
         (root, t0): (u32, f32),
@@ -831,8 +737,8 @@ impl<'a> RayCaster<'a> {
         tmax: f32,
         stats: &mut RayStats,
     ) -> Option<Hit> {
-        let l = &self.layout;
-        let r4 = Ray4::new(r);
+        let (l, n8) = (&self.layout, &self.nodes);
+        let slab = Slab8::new(r);
         let mut best_t = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
         let mut stack: Stack<Entry, STACK> = Stack::new();
@@ -841,71 +747,45 @@ impl<'a> RayCaster<'a> {
             if e.t > best_t * watertight::BOX_SLACK {
                 continue;
             }
-            let (ts, nt, g0, ng) = l.node(e.node);
-            if STATS {
-                stats.nodes += l.is_node(e.node) as u64;
-                stats.tris += nt as u64;
-            }
-            if nt > 0 {
-                l.closest_hit::<WIDE>(r, ts, nt, tmin, &mut best_t, &mut best);
-            }
-            if ng == 1 {
-                let g = &l.groups[g0];
+            if is_leaf(e.node) {
+                let (ts, nt) = n8.leaf(e.node);
                 if STATS {
-                    stats.boxes += g.lanes as u64;
+                    stats.nodes += Nodes8::leaf_counts(e.node) as u64;
+                    stats.tris += nt as u64;
                 }
-                let (mask, tn) = r4.test(g, &l.faces[g0], tmin, best_t);
-                push_sorted(&mut stack, l, mask, &tn, &g.child, |c, t| Entry {
-                    node: c,
-                    t,
-                });
+                l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
                 continue;
             }
-            // More than four children: push every hit, then sort the new entries.
-            let before = stack.size();
-            #[cfg(target_arch = "x86_64")]
-            if WIDE && ng == 2 {
-                let gs = &l.groups[g0..g0 + 2];
-                if STATS {
-                    stats.boxes += (gs[0].lanes + gs[1].lanes) as u64;
-                }
-                // SAFETY: `WIDE` is set only under AVX2 (`closest_avx2`).
-                let (mut mask, tn) = unsafe {
-                    r4.test8(
-                        (&gs[0], &gs[1]),
-                        (l.faces[g0], l.faces[g0 + 1]),
-                        tmin,
-                        best_t,
-                    )
-                };
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let c = gs[i >> 2].child[i & 3];
-                    l.prefetch(c);
-                    stack.push(Entry { node: c, t: tn[i] });
-                }
+            let n = &n8.nodes[e.node as usize];
+            if STATS {
+                stats.nodes += n.counts as u64;
+                stats.boxes += n.lanes as u64;
+                stats.tris += n.num_tris as u64;
             }
-            if !(WIDE && ng == 2) {
-                for (g, f) in l.groups[g0..g0 + ng].iter().zip(&l.faces[g0..g0 + ng]) {
-                    if STATS {
-                        stats.boxes += g.lanes as u64;
-                    }
-                    let (mut mask, tn) = r4.test(g, f, tmin, best_t);
-                    while mask != 0 {
-                        let i = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        l.prefetch(g.child[i]);
-                        stack.push(Entry {
-                            node: g.child[i],
-                            t: tn[i],
-                        });
-                    }
-                }
+            if n.num_tris > 0 {
+                let (ts, nt) = (n.tri_start as usize, n.num_tris as usize);
+                l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
+            }
+            if n.more != NONE {
+                stack.push(Entry {
+                    node: n.more,
+                    t: e.t,
+                });
+            }
+            let (mut mask, tn) = slab.test::<AVX>(n, tmin, best_t);
+            let before = stack.size();
+            while mask != 0 {
+                let i = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                n8.prefetch(l, n.child[i]);
+                stack.push(Entry {
+                    node: n.child[i],
+                    t: tn[i],
+                });
             }
             let k = stack.size() - before;
             if k > 1 {
-                // Nearest on top: decreasing entry distance.
+                // Nearest on top: decreasing entry distance; ties keep the lane order.
                 stack.top_mut(k).sort_by(|a, b| b.t.total_cmp(&a.t));
             }
         }
@@ -923,94 +803,6 @@ impl<'a> RayCaster<'a> {
 #[inline(always)]
 fn has_avx2() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
-}
-
-/// The hit lanes (`mask`) of a node for occlusion, in lane order: the lanes of `first` (pieces
-/// visited first) after the others, the highest of each set first. The lane to visit next is
-/// returned, the others are pushed so that they are popped in that order.
-#[inline(always)]
-fn descend<const N: usize>(
-    stack: &mut Stack<u32, N>,
-    l: &Layout,
-    mask: u32,
-    first: u32,
-    child: impl Fn(usize) -> u32,
-) -> Option<u32> {
-    let (mut rest, mut last) = (mask & !first, mask & first);
-    if last == 0 {
-        (rest, last) = (0, rest);
-    }
-    while rest != 0 {
-        let i = rest.trailing_zeros() as usize;
-        rest &= rest - 1;
-        l.prefetch(child(i));
-        stack.push(child(i));
-    }
-    if last == 0 {
-        return None;
-    }
-    loop {
-        let i = last.trailing_zeros() as usize;
-        last &= last - 1;
-        if last == 0 {
-            return Some(child(i));
-        }
-        l.prefetch(child(i));
-        stack.push(child(i));
-    }
-}
-
-/// Push the hit lanes (`mask`) of one group so that the nearest entry distance is on top
-/// (visited first); ties keep the tree's child order.
-#[inline(always)]
-fn push_sorted<T: Copy, const N: usize>(
-    stack: &mut Stack<T, N>,
-    l: &Layout,
-    mask: u32,
-    tn: &[f32; 4],
-    child: &[u32; 4],
-    entry: impl Fn(u32, f32) -> T,
-) {
-    match mask.count_ones() {
-        0 => {}
-        1 => {
-            let i = mask.trailing_zeros() as usize;
-            l.prefetch(child[i]);
-            stack.push(entry(child[i], tn[i]));
-        }
-        2 => {
-            let i = mask.trailing_zeros() as usize;
-            let j = (mask & (mask - 1)).trailing_zeros() as usize;
-            // Farthest first; on a tie the higher lane first, as below.
-            let (a, b) = if tn[i] <= tn[j] { (j, i) } else { (i, j) };
-            l.prefetch(child[a]);
-            stack.push(entry(child[a], tn[a]));
-            l.prefetch(child[b]);
-            stack.push(entry(child[b], tn[b]));
-        }
-        _ => {
-            // Lanes sorted by decreasing distance (farthest pushed first).
-            let mut idx = [0usize; 4];
-            let mut k = 0;
-            let mut m = mask;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                // Insertion: keep idx[..k] by decreasing tn, ties in decreasing lane order.
-                let mut j = k;
-                while j > 0 && tn[idx[j - 1]] <= tn[i] {
-                    idx[j] = idx[j - 1];
-                    j -= 1;
-                }
-                idx[j] = i;
-                k += 1;
-            }
-            for &i in &idx[..k] {
-                l.prefetch(child[i]);
-                stack.push(entry(child[i], tn[i]));
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -85,15 +85,13 @@ impl<const N: usize> Stack<u32, N> {
     /// past the selected ones. Stores of single entries, so that a pop soon after reads from
     /// one store (a wider store would stall the load that forwards from it).
     #[inline(always)]
-    pub(crate) fn push8(&mut self, lanes: [&[u32; 4]; 2], mask: u32) {
+    pub(crate) fn push8(&mut self, lanes: &[u32; 8], mask: u32) {
         if !self.spilled && self.len + 8 <= N {
             let mut len = self.len;
-            for (j, g) in lanes.iter().enumerate() {
-                for (i, &c) in g.iter().enumerate() {
-                    // SAFETY: `len < self.len + 8 <= N`.
-                    unsafe { self.buf.get_unchecked_mut(len) }.write(c);
-                    len += (mask >> (4 * j + i) & 1) as usize;
-                }
+            for (i, &c) in lanes.iter().enumerate() {
+                // SAFETY: `len < self.len + 8 <= N`.
+                unsafe { self.buf.get_unchecked_mut(len) }.write(c);
+                len += (mask >> i & 1) as usize;
             }
             self.len = len;
             return;
@@ -101,7 +99,7 @@ impl<const N: usize> Stack<u32, N> {
         let mut m = mask & 0xFF;
         while m != 0 {
             let i = m.trailing_zeros() as usize;
-            self.push(lanes[i >> 2][i & 3]);
+            self.push(lanes[i]);
             m &= m - 1;
         }
     }

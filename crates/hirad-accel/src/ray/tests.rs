@@ -126,14 +126,14 @@ fn layout_is_depth_first_with_inner_surfaces() {
     let s = two_tri_scene();
     let t = inner_surface_tree(&s);
     for boxes in Boxes::ALL {
-        let rc = RayCaster::with_boxes(&s, &t, boxes);
-        let l = &rc.layout;
+        let lay = layout::Layout::new(&s, &t, boxes);
+        let l = &lay;
         // The root has a child: one group holding its own triangle (1) and the leaf's box; the
         // leaf is encoded in place and holds triangle 0 in the second packet. With tight boxes
         // the root's triangle has a box of its own in the second lane.
         assert_eq!(l.root, Some(0));
-        // One group, and the empty one past the last.
-        assert_eq!(l.groups.len(), 2);
+        // One group.
+        assert_eq!(l.groups.len(), 1);
         let g = &l.groups[0];
         let (lanes, run) = match boxes {
             Boxes::Tight | Boxes::Nodes => (2, 0b10),
@@ -258,7 +258,8 @@ fn a_sparse_run_is_visited_in_distance_order() {
     let t = root_and_leaf(&s, (0..99).collect(), 99);
     // The run kept whole (tight boxes split it: `a_long_run_is_split_into_pieces`).
     let rc = RayCaster::with_boxes(&s, &t, Boxes::Nodes);
-    let g = &rc.layout.groups[0];
+    let lay = layout::Layout::new(&s, &t, Boxes::Nodes);
+    let g = &lay.groups[0];
     assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
     // Down onto the leaf's triangle: the leaf is visited, the run's box (x ≤ 197) is missed.
     let o = Vec3::new(2.0 * 99.0 + 0.25, 0.25, 1.0);
@@ -288,7 +289,8 @@ fn a_long_run_is_split_into_pieces() {
     let s = row_of_triangles("row", 100);
     let t = root_and_leaf(&s, (0..99).collect(), 99);
     let rc = RayCaster::new(&s, &t);
-    let l = &rc.layout;
+    let lay = layout::Layout::new(&s, &t, Boxes::Tight);
+    let l = &lay;
     let g = &l.groups[0];
     assert_eq!((g.lanes, g.num_tris, g.run, g.num_groups), (4, 0, 0, 1));
     let subs = l.groups.iter().filter(|g| g.run & layout::SUB != 0).count();
@@ -373,8 +375,12 @@ fn rays_pass_through_nodes_holding_only_one_child() {
         (Boxes::Cluster, 2, 3),
     ] {
         let rc = RayCaster::with_boxes(&s, &t, boxes);
-        // The groups, and the empty one past the last.
-        assert_eq!(rc.layout.groups.len(), groups + 1, "{boxes:?}");
+        assert_eq!(
+            layout::Layout::new(&s, &t, boxes).groups.len(),
+            groups,
+            "{boxes:?}"
+        );
+        assert_eq!(rc.nodes.nodes.len(), groups, "{boxes:?}");
         let mut st = RayStats::default();
         assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
         assert_eq!((st.nodes, st.tris), (nodes, 1), "{boxes:?}");
@@ -406,18 +412,18 @@ fn tight_boxes_shrink_a_loose_cluster_box() {
 
 #[test]
 fn packets_and_groups_hold_wide_nodes() {
-    // A root with six leaf children of one triangle each: two groups (4 + 2 lanes).
+    // A root with six leaf children of one triangle each: two groups (4 + 2 lanes), one node.
     let s = row_of_triangles("six", 6);
     let t = one_leaf_per_triangle(&s);
     let rc = RayCaster::new(&s, &t);
-    let l = &rc.layout;
-    assert_eq!(
-        l.groups.len(),
-        3,
-        "two groups and the empty one past the last"
-    );
+    let lay = layout::Layout::new(&s, &t, Boxes::Tight);
+    let l = &lay;
+    assert_eq!(l.groups.len(), 2);
     assert_eq!((l.groups[0].num_groups, l.groups[0].lanes), (2, 4));
     assert_eq!(l.groups[1].lanes, 2);
+    // One eight-wide node of six lanes.
+    assert_eq!(rc.nodes.nodes.len(), 1);
+    assert_eq!(rc.nodes.nodes[0].lanes, 6);
     assert_eq!(l.packets.len(), 6);
     // Every triangle is found from above, by both query kinds, with the right id.
     for i in 0..6u32 {
@@ -505,14 +511,12 @@ fn eight_lanes_push_as_one_by_one_in_lane_order() {
         let mut small_fast: Stack<u32, 8> = Stack::new();
         let mut small_slow: Stack<u32, 8> = Stack::new();
         for k in 0..4 {
-            let a: [u32; 4] = std::array::from_fn(|i| (100 * round + 10 * k + i) as u32);
-            let b: [u32; 4] = std::array::from_fn(|i| (100 * round + 10 * k + 4 + i) as u32);
+            let a: [u32; 8] = std::array::from_fn(|i| (100 * round + 10 * k + i) as u32);
             let mask = (g.next_u64() & 0xFF) as u32;
-            fast.push8([&a, &b], mask);
-            small_fast.push8([&a, &b], mask);
-            for i in 0..8 {
+            fast.push8(&a, mask);
+            small_fast.push8(&a, mask);
+            for (i, &c) in a.iter().enumerate() {
                 if mask >> i & 1 == 1 {
-                    let c = if i < 4 { a[i] } else { b[i - 4] };
                     slow.push(c);
                     small_slow.push(c);
                 }
@@ -538,12 +542,13 @@ fn stack_spills_to_heap_in_order() {
 }
 
 #[test]
-fn group_test_equals_scalar_slab() {
-    // The 4-wide box test of a group (and the 8-wide test of two) gives the scalar slab test's answer and entry distance
-    // in every lane, including rays with zero direction components (both signs) whose origin
-    // lies in a box plane (0·∞ = NaN), and never hits an empty lane. The one exception: a lane
-    // is skipped when the ray lies in the plane of one of its box's faces whose face bit is set
-    // (what touches that plane lies in it: coplanar with the ray; `Ray4::flat_in_plane`).
+fn node_test_equals_scalar_slab() {
+    // The 8-wide box test of a node, compiled for the baseline and for AVX, gives the scalar
+    // slab test's answer and entry distance in every lane, including rays with zero direction
+    // components (both signs) whose origin lies in a box plane (0·∞ = NaN), and never hits an
+    // empty lane. The one exception: a lane is skipped when the ray lies in the plane of one
+    // of its box's faces whose face bit is set (what touches that plane lies in it: coplanar
+    // with the ray; `Slab8::flat_in_plane`).
     let mut g = hirad_core::rng::SplitMix64::new(4);
     let grid = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
     let mut hits = 0;
@@ -555,42 +560,36 @@ fn group_test_equals_scalar_slab() {
             d[(i / 3) % 3] = if i % 2 == 0 { 0.0 } else { -0.0 };
         }
         let r = RayPre::new(o, d).unwrap();
-        let r4 = layout::Ray4::new(&r);
-        let mut grp = layout::Group::default();
+        let slab = Slab8::new(&r);
+        let mut node = layout::Node8::EMPTY;
         let mut boxes = Vec::new();
-        let faces = (g.next_u64() & 0x3F3F3F) as u32;
-        for lane in 0..3 {
+        let full = 1 + i % 8;
+        for lane in 0..full {
             let (lo, hi) = grid_box(&mut g, grid);
-            grp.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
+            for a in 0..3 {
+                node.b[a][lane] = lo[a];
+                node.b[a + 3][lane] = hi[a];
+            }
             boxes.push([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]);
         }
-        let (mask, tn) = r4.test(&grp, &faces, 0.0, 10.0);
-        assert_eq!(mask & 8, 0, "empty lane hit");
-        // The 8-wide AVX test of two groups gives the two 4-wide tests' masks and distances.
+        node.faces = g.next_u64() & 0x3F3F_3F3F_3F3F_3F3F;
+        let faces = node.faces;
+        let (mask, tn) = slab.test::<false>(&node, 0.0, 10.0);
+        assert_eq!(mask >> full, 0, "empty lane hit");
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
-            let mut other = layout::Group::default();
-            for lane in 0..(i % 5) {
-                let (lo, hi) = grid_box(&mut g, grid);
-                other.set_lane(lane, &Aabb { min: lo, max: hi }, lane as u32);
-            }
-            let f2 = (g.next_u64() & 0x3F3F3F3F) as u32;
-            let (m2, t2) = r4.test(&other, &f2, 0.0, 10.0);
             // SAFETY: AVX was detected above.
-            let (m8, t8) = unsafe { r4.test8((&grp, &other), (faces, f2), 0.0, 10.0) };
-            assert_eq!(m8, mask | m2 << 4);
-            for lane in 0..4 {
+            let (m8, t8) = unsafe { slab.test_avx(&node, 0.0, 10.0) };
+            assert_eq!(m8, mask);
+            for lane in 0..8 {
                 if mask >> lane & 1 == 1 {
-                    assert_eq!(t8[lane], tn[lane]);
-                }
-                if m2 >> lane & 1 == 1 {
-                    assert_eq!(t8[4 + lane], t2[lane]);
+                    assert_eq!(t8[lane].to_bits(), tn[lane].to_bits());
                 }
             }
         }
         for (lane, b) in boxes.iter().enumerate() {
             let s = r.slab(b, 0.0, 10.0);
-            let f = faces >> (8 * lane);
+            let f = (faces >> (8 * lane)) as u32;
             let flat_in_plane = (0..3).any(|a| {
                 d[a] == 0.0
                     && ((b[a] == o[a] && f >> a & 1 == 1)
@@ -607,6 +606,52 @@ fn group_test_equals_scalar_slab() {
     }
     assert!(hits > 6000, "{hits}");
     assert!(skipped > 50, "{skipped}");
+}
+
+#[test]
+fn a_node_of_twenty_lanes_continues_in_two_more_nodes() {
+    // A root with twenty leaf children: three eight-wide nodes chained by `more` (8 + 8 + 4
+    // lanes). Every triangle is found, with its id, by closest hit, single occlusion and the
+    // stream, and the chain counts as one node of the tree.
+    let n = 20;
+    let s = row_of_triangles("twenty", n);
+    let t = one_leaf_per_triangle(&s);
+    let rc = RayCaster::new(&s, &t);
+    assert_eq!(rc.validate(), Ok(()));
+    let nodes = &rc.nodes.nodes;
+    assert_eq!(nodes.len(), 3);
+    assert_eq!(
+        nodes.iter().map(|x| (x.lanes, x.more)).collect::<Vec<_>>(),
+        [(8, 1), (8, 2), (4, layout::NONE)]
+    );
+    let origins: Vec<Vec3> = (0..n)
+        .flat_map(|i| {
+            let o = Vec3::new(i as f32 * 2.0 + 0.25, 0.25, 1.0);
+            [o, o + Vec3::new(1.0, 0.0, 0.0)]
+        })
+        .collect();
+    for (k, &o) in origins.iter().enumerate() {
+        let want = k % 2 == 0;
+        assert_eq!(rc.occluded(o, -Vec3::Z, 0.0, 2.0), want, "{k}");
+        assert_eq!(
+            rc.closest(o, -Vec3::Z, 0.0, 2.0).map(|h| h.tri),
+            want.then_some(k as u32 / 2)
+        );
+        let mut st = RayStats::default();
+        assert_eq!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st), want);
+        // Over a triangle, the root (its three nodes) and the leaf; beside the last one the
+        // ray misses the root's box.
+        let nodes = if want {
+            2
+        } else if k + 1 < 2 * n {
+            1
+        } else {
+            0
+        };
+        assert_eq!(st.nodes, nodes, "{k}");
+    }
+    let out = stream_down(&rc, origins.iter().copied());
+    assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
 }
 
 #[test]
@@ -651,37 +696,6 @@ fn long_runs_go_to_wide_packets() {
     }
     let out = rc.occluded_batch(&segs);
     assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
-}
-
-#[test]
-fn stream_push_order_equals_single_ray_order() {
-    // The branch-free positions of a group's lanes on a stream ray's stack (`PUSH_ORDER`) pop
-    // the hit lanes in the order the single-ray traversal visits them (`descend`: the lanes
-    // visited first before the others, the highest of each set first), and put the lanes not
-    // hit above the new top.
-    let child = [10, 11, 12, 13];
-    for mask in 0..16u32 {
-        for first in 0..16u32 {
-            let first = first & mask;
-            let pos = PUSH_ORDER[(mask | first << 4) as usize];
-            let mut seen = pos.map(|p| p as usize);
-            seen.sort();
-            assert_eq!(seen, [0, 1, 2, 3]);
-            let k = mask.count_ones() as usize;
-            let mut stream = [0u32; 4];
-            for lane in 0..4 {
-                stream[pos[lane] as usize] = child[lane];
-                assert_eq!((pos[lane] as usize) < k, mask >> lane & 1 == 1);
-            }
-            let mut single: Stack<u32, 8> = Stack::new();
-            if let Some(c) = descend(&mut single, &layout::Layout::default(), mask, first, |i| {
-                child[i]
-            }) {
-                single.push(c);
-            }
-            assert_eq!(single.top_mut(k), &stream[..k], "{mask:04b} {first:04b}");
-        }
-    }
 }
 
 #[test]
@@ -740,10 +754,13 @@ fn validate_finds_broken_references() {
             let rc = RayCaster::with_boxes(&scene, &tree, boxes);
             assert_eq!(rc.validate(), Ok(()), "{s:?} {boxes:?}");
             let mut broken = RayCaster::with_boxes(&scene, &tree, boxes);
-            let g = &mut broken.layout.groups[0];
-            let lane = (0..4).find(|&l| g.child[l] != layout::NONE).unwrap();
-            g.child[lane] = layout::NONE;
+            let n = &mut broken.nodes.nodes[0];
+            n.child[0] = layout::NONE;
             assert!(broken.validate().is_err(), "{s:?} {boxes:?}");
+            let mut emptied = RayCaster::with_boxes(&scene, &tree, boxes);
+            let n = &mut emptied.nodes.nodes[0];
+            n.b[0][0] = f32::INFINITY;
+            assert!(emptied.validate().is_err(), "{s:?} {boxes:?}");
             let mut dropped = RayCaster::with_boxes(&scene, &tree, boxes);
             let p = &mut dropped.layout.packets[0];
             let k = (0..4).find(|&k| p.id[k] != u32::MAX).unwrap();
@@ -755,8 +772,8 @@ fn validate_finds_broken_references() {
 
 #[test]
 fn baseline_and_avx2_traversals_equal_brute_force() {
-    // The occlusion traversals (single ray and batch) compiled for the x86_64 baseline (4-wide
-    // box tests) and for AVX2 (8-wide) answer as the brute-force loop does, for every
+    // The occlusion traversals (single ray and batch) compiled for the x86_64 baseline
+    // (scalar box tests) and for AVX2 answer as the brute-force loop does, for every
     // strategy, on random triangles of mixed sizes and random segments.
     let mut g = hirad_core::rng::SplitMix64::new(21);
     let mut f = |s: f32| (g.next_f32() - 0.5) * s;
@@ -783,7 +800,7 @@ fn baseline_and_avx2_traversals_equal_brute_force() {
     for st in Strategy::ALL {
         let t = ClusterTree::build(&s, st, &ClusterConfig::default());
         let rc = RayCaster::new(&s, &t);
-        let root = rc.layout.root.unwrap();
+        let root = rc.nodes.root.unwrap();
         let (mut blocked, mut wide) = (0, 0);
         for q in &segs {
             let want = rc.occluded_brute(q.origin, q.dir, q.tmin, q.tmax);

@@ -213,9 +213,8 @@ impl Layout {
             }
         }
         // Pass 2: fill in.
-        // One empty group past the last (`Layout::groups`).
-        let mut groups = vec![Group::default(); ng + 1];
-        let mut faces = vec![0u32; ng + 1];
+        let mut groups = vec![Group::default(); ng];
+        let mut faces = vec![0u32; ng];
         let empty = Packet {
             v: [[0.0; 4]; 9],
             id: [u32::MAX; 4],

@@ -53,10 +53,11 @@ pub(in crate::ray) struct Group {
     pub num_groups: u32,
     /// Number of non-empty lanes in this group (the run's lane included).
     pub lanes: u8,
-    /// Bit of the run's lane when occlusion queries test the run as soon as that lane is hit
-    /// ([`EAGER_HITS_PER_TEST`](super::run_tree::EAGER_HITS_PER_TEST)) instead of pushing its reference; bits 4–7: lanes holding
-    /// pieces of such a run split into a [`RunTree`](super::run_tree::RunTree), which occlusion queries visit before the
-    /// other lanes hit ([`FIRST`] shifted by the lane).
+    /// Bit of the run's lane when occlusion queries test the run before any other lane hit
+    /// ([`EAGER_HITS_PER_TEST`](super::run_tree::EAGER_HITS_PER_TEST)); bits 4–7: lanes
+    /// holding pieces of such a run split into a [`RunTree`](super::run_tree::RunTree), which
+    /// occlusion queries visit before the other lanes hit ([`FIRST`] shifted by the lane).
+    /// The [`Node8`](super::node8::Node8)s put these lanes last, where occlusion starts.
     pub eager: u8,
     /// Bit of the lane holding the box of the node's own triangle run (0: none in this group);
     /// [`SUB`] in a group of pieces of a split run.
@@ -64,16 +65,6 @@ pub(in crate::ray) struct Group {
 }
 
 impl Group {
-    /// Split the hit mask `all` of this group for occlusion: the lanes to push, and the
-    /// node's own run `(first packet, count)` when `all` hits its lane and the run is tested
-    /// at once ([`Group::eager`]).
-    #[inline(always)]
-    pub(in crate::ray) fn split_eager(&self, all: u32) -> (u32, Option<(usize, usize)>) {
-        let eager = (self.eager & 0xF) as u32;
-        let run = (all & eager != 0).then_some((self.tri_start as usize, self.num_tris as usize));
-        (all & !eager, run)
-    }
-
     /// Put `b` and reference `r` in `lane`.
     pub(in crate::ray) fn set_lane(&mut self, lane: usize, b: &Aabb, r: u32) {
         for a in 0..3 {

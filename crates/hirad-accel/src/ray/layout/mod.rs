@@ -14,17 +14,24 @@
 mod build;
 mod encode;
 mod faces;
+mod node8;
 mod packets;
-mod ray4;
 mod run_tree;
+mod slab8;
 
-#[cfg(test)]
 pub(in crate::ray) use encode::NONE;
-pub(in crate::ray) use encode::{leaf_run, Group, LEAF, RUN, SUB};
-pub(in crate::ray) use packets::{Packet, Wide, WIDE_MIN};
-pub(in crate::ray) use ray4::Ray4;
+#[cfg(test)]
+pub(in crate::ray) use encode::SUB;
+pub(in crate::ray) use encode::{leaf_run, LEAF, RUN};
+#[cfg(test)]
+pub(in crate::ray) use node8::Node8;
+pub(in crate::ray) use node8::{is_leaf, Nodes8};
+#[cfg(test)]
+pub(in crate::ray) use packets::WIDE_MIN;
+pub(in crate::ray) use packets::{Packet, Wide};
+pub(in crate::ray) use slab8::Slab8;
 
-use encode::CHUNK;
+use encode::Group;
 use hirad_core::choice;
 use serde::{Deserialize, Serialize};
 
@@ -106,8 +113,8 @@ pub(in crate::ray) struct Layout {
     pub root_box: [f32; 6],
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
-    /// The nodes' groups, and one empty group past the last, so that the group after any
-    /// node's first exists (the traversal loads it before it knows the node's group count).
+    /// The nodes' groups (the build's form of the nodes, turned into
+    /// [`Nodes8`](node8::Nodes8) for the queries).
     pub groups: Vec<Group>,
     /// Per group, 6 bits per lane ([`faces::face_bits`]): bit `a` (`3 + a`) set when everything in
     /// the lane that touches the plane of the box's min (max) face along axis `a` lies in
@@ -120,84 +127,9 @@ pub(in crate::ray) struct Layout {
 }
 
 impl Layout {
-    /// Check the references: the groups end with an empty one; from the root, every lane with
-    /// a box refers to a group in range or a run whose packets are in range, and every
-    /// triangle of the scene (`num_tris`) is stored in a run some reference reaches.
-    pub(in crate::ray) fn validate(&self, num_tris: usize) -> Result<(), String> {
-        let Some(root) = self.root else {
-            return if num_tris == 0 {
-                Ok(())
-            } else {
-                Err("no root".into())
-            };
-        };
-        if self
-            .groups
-            .last()
-            .is_none_or(|g| g.lanes != 0 || g.num_groups != 0)
-        {
-            return Err("no empty group past the last".into());
-        }
-        let mut seen = vec![false; num_tris];
-        let mut visited = vec![false; self.groups.len()];
-        let mut stack = vec![root];
-        while let Some(r) = stack.pop() {
-            if r == encode::NONE {
-                return Err("a lane with a box refers to nothing".into());
-            }
-            let is_group = r & (LEAF | RUN) == 0;
-            if (r & !RUN) as usize >= self.groups.len() && r & LEAF == 0 {
-                return Err(format!(
-                    "reference {r:#x} past the {} groups",
-                    self.groups.len()
-                ));
-            }
-            let (s, n, g0, ng) = self.node(r);
-            let (len, size) = if n >= WIDE_MIN {
-                (self.wide.len(), 16)
-            } else {
-                (self.packets.len(), 4)
-            };
-            if n > 0 && s + n.div_ceil(size) > len {
-                return Err(format!(
-                    "run {s}+{n} of reference {r:#x} past {len} packets"
-                ));
-            }
-            for k in 0..n {
-                let id = if n >= WIDE_MIN {
-                    self.wide[s + k / 16].id[k % 16]
-                } else {
-                    self.packets[s + k / 4].id[k % 4]
-                };
-                match seen.get_mut(id as usize) {
-                    Some(v) => *v = true,
-                    None => return Err(format!("triangle {id} out of range")),
-                }
-            }
-            if is_group && !std::mem::replace(&mut visited[g0], true) {
-                if g0 + ng > self.groups.len() {
-                    return Err(format!("groups {g0}+{ng} past {}", self.groups.len()));
-                }
-                for g in &self.groups[g0..g0 + ng] {
-                    for lane in 0..4 {
-                        if g.b[0][lane] <= g.b[3][lane] {
-                            stack.push(g.child[lane]);
-                        }
-                    }
-                }
-            }
-        }
-        match seen.iter().position(|&v| !v) {
-            Some(t) => Err(format!("triangle {t} reached by no reference")),
-            None => Ok(()),
-        }
-    }
-
     /// Bytes used by the layout.
     pub(in crate::ray) fn memory_bytes(&self) -> usize {
-        self.groups.len() * std::mem::size_of::<Group>()
-            + self.faces.len() * std::mem::size_of::<u32>()
-            + self.packets.len() * std::mem::size_of::<Packet>()
+        self.packets.len() * std::mem::size_of::<Packet>()
             + self.wide.len() * std::mem::size_of::<Wide>()
     }
 
@@ -217,48 +149,5 @@ impl Layout {
             let nt = if g.run != 0 { 0 } else { g.num_tris as usize };
             (g.tri_start as usize, nt, r as usize, g.num_groups as usize)
         }
-    }
-
-    /// Whether visiting reference `r` visits a node of the tree (a node's own run behind its
-    /// box does not: its node was visited when the box was tested).
-    #[inline(always)]
-    pub(in crate::ray) fn is_node(&self, r: u32) -> bool {
-        if r & LEAF != 0 {
-            r & CHUNK == 0
-        } else {
-            r & RUN == 0 && self.groups[r as usize].run & SUB == 0
-        }
-    }
-
-    /// Hint the cache to load what visiting `r` reads first.
-    #[inline(always)]
-    pub(in crate::ray) fn prefetch(&self, r: u32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            // SAFETY: a prefetch is only a hint and never faults, whatever the address.
-            #[allow(unused_unsafe)]
-            unsafe {
-                if r & (LEAF | RUN) != 0 {
-                    // A packet spans three cache lines (160 bytes, at offset 0 or 32 of a line);
-                    // of a wide packet, the first three.
-                    let (s, n, _, _) = self.node(r);
-                    let p = if n >= WIDE_MIN {
-                        self.wide.as_ptr().wrapping_add(s) as *const i8
-                    } else {
-                        self.packets.as_ptr().wrapping_add(s) as *const i8
-                    };
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
-                } else {
-                    let p = self.groups.as_ptr().wrapping_add(r as usize) as *const i8;
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                }
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = r;
     }
 }

@@ -1,0 +1,148 @@
+//! The slab test of a [`Node8`]'s eight boxes ([`Slab8`]): one AVX pass where the CPU has it,
+//! the same f32 operations lane by lane otherwise (hence the same mask).
+
+use super::super::watertight::{RayPre, BOX_SLACK};
+use super::node8::Node8;
+
+/// Per-ray data of the eight-wide box test: origin, reciprocal direction, and for each axis
+/// the index of the near and far plane in [`Node8::b`] (chosen by the sign of the direction,
+/// so that `0·∞ = NaN` can only come from an origin lying exactly in a box plane, which the
+/// comparisons then ignore, as the scalar [`RayPre::slab`] does).
+#[derive(Clone, Copy, Debug, Default)]
+pub(in crate::ray) struct Slab8 {
+    o: [f32; 3],
+    inv: [f32; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+    /// Bit `a` set when the direction's component `a` is zero (the ray lies in a plane of
+    /// constant coordinate `a`).
+    in_plane: u32,
+}
+
+impl Slab8 {
+    #[inline(always)]
+    pub(in crate::ray) fn new(r: &RayPre) -> Slab8 {
+        Slab8 {
+            o: r.o,
+            inv: r.inv,
+            // Plane indices are in 0..6 (RayPre's contract); keep that invariant for the
+            // unchecked loads of `test`.
+            near: r.near.map(|i| i.min(5)),
+            far: r.far.map(|i| i.min(5)),
+            in_plane: (r.d[0] == 0.0) as u32
+                | ((r.d[1] == 0.0) as u32) << 1
+                | ((r.d[2] == 0.0) as u32) << 2,
+        }
+    }
+
+    /// Lanes of `n` that the ray only touches along a face: it lies in the plane of a face of
+    /// the lane's box (direction component zero, origin on the face) and everything in the
+    /// lane that touches that plane lies in it ([`Node8::faces`], from
+    /// [`face_bits`](super::faces::face_bits); a box flat in the plane is one case). Triangles
+    /// in the plane are coplanar with the ray: the watertight test computes all three sheared
+    /// edge functions as exactly zero (the in-plane coordinate is one of the two sheared axes
+    /// and its shear constant is zero) and reports no hit. The others lie strictly on one side
+    /// of the plane, and the ray misses their boxes as it would in a leaf of their own.
+    /// Skipping these lanes changes no result; it keeps a ray running along a floor from
+    /// visiting every cell standing on the floor that it passes (the slab test itself must
+    /// accept them: the ray touches them).
+    #[inline(never)]
+    fn flat_in_plane(&self, n: &Node8) -> u32 {
+        let mut m = 0;
+        for a in 0..3 {
+            if self.in_plane & (1 << a) != 0 {
+                let o = self.o[a];
+                for lane in 0..8 {
+                    let f = n.faces >> (8 * lane);
+                    if (n.b[a][lane] == o && f & (1 << a) != 0)
+                        || (n.b[a + 3][lane] == o && f & (1 << (a + 3)) != 0)
+                    {
+                        m |= 1 << lane;
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Slab test of the eight boxes of `n` clipped to `[tmin, tmax]`: bit `i` of the mask is
+    /// set when lane `i` is (conservatively, like [`RayPre::slab`]) hit and not ruled out by
+    /// [`Slab8::flat_in_plane`]; `tn` its entry distance. `AVX`: in one AVX pass (only in the
+    /// AVX2 copies of the traversals).
+    #[inline(always)]
+    pub(in crate::ray) fn test<const AVX: bool>(
+        &self,
+        n: &Node8,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 8]) {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
+            return unsafe { self.test_avx(n, tmin, tmax) };
+        }
+        let mut mask = 0;
+        let mut out = [0f32; 8];
+        for (lane, out) in out.iter_mut().enumerate() {
+            let mut tn = tmin;
+            let mut tf = tmax;
+            for a in 0..3 {
+                // `near`/`far` are below 6 (`new`), the length of `n.b`.
+                let t0 = (n.b[self.near[a]][lane] - self.o[a]) * self.inv[a];
+                let t1 = (n.b[self.far[a]][lane] - self.o[a]) * self.inv[a];
+                // NaN compares false: it leaves the running bound unchanged.
+                tn = if t0 > tn { t0 } else { tn };
+                tf = if t1 < tf { t1 } else { tf };
+            }
+            if tn <= tf * BOX_SLACK {
+                mask |= 1 << lane;
+            }
+            *out = tn;
+        }
+        if self.in_plane != 0 {
+            mask &= !self.flat_in_plane(n);
+        }
+        (mask, out)
+    }
+
+    /// [`Slab8::test`] in one AVX pass: the same f32 operations per lane (max/min return the
+    /// second operand when either is NaN, as the scalar form keeps its running bound).
+    ///
+    /// Not itself compiled for AVX (a function with target features is not inlined into the
+    /// traversal loops, which are written once for both copies): it is inlined into the AVX2
+    /// copies of the traversals, where its intrinsics are then compiled for AVX too.
+    ///
+    /// # Safety
+    /// The CPU must support AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(in crate::ray) unsafe fn test_avx(
+        &self,
+        n: &Node8,
+        tmin: f32,
+        tmax: f32,
+    ) -> (u32, [f32; 8]) {
+        use core::arch::x86_64::*;
+        let mut tn = _mm256_set1_ps(tmin);
+        let mut tf = _mm256_set1_ps(tmax);
+        for a in 0..3 {
+            let o = _mm256_broadcast_ss(&self.o[a]);
+            let inv = _mm256_broadcast_ss(&self.inv[a]);
+            // Rows of 32 bytes in a 64-byte aligned node; `near`/`far` below 6 (`new`).
+            let near = _mm256_load_ps(n.b.get_unchecked(self.near[a]).as_ptr());
+            let far = _mm256_load_ps(n.b.get_unchecked(self.far[a]).as_ptr());
+            let t0 = _mm256_mul_ps(_mm256_sub_ps(near, o), inv);
+            let t1 = _mm256_mul_ps(_mm256_sub_ps(far, o), inv);
+            tn = _mm256_max_ps(t0, tn);
+            tf = _mm256_min_ps(t1, tf);
+        }
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_mul_ps(tf, _mm256_set1_ps(BOX_SLACK)));
+        let mut mask = _mm256_movemask_ps(hit) as u32;
+        if self.in_plane != 0 {
+            mask &= !self.flat_in_plane(n);
+        }
+        let mut out = [0f32; 8];
+        _mm256_storeu_ps(out.as_mut_ptr(), tn);
+        (mask, out)
+    }
+}
