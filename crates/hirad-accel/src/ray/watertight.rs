@@ -331,7 +331,7 @@ pub struct Hits4 {
 /// ([`Hits4::unsure`]).
 ///
 /// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
-/// `Ray4::test8`).
+/// `Slab8::test_avx`).
 ///
 /// # Safety
 /// The CPU must support AVX.

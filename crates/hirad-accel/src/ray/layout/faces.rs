@@ -1,5 +1,5 @@
 //! Face bits: per lane, which faces of its box hold only what lies in the face's plane, so
-//! that a ray lying in that plane can skip the lane (`Ray4::flat_in_plane`).
+//! that a ray lying in that plane can skip the lane (`Slab8::flat_in_plane`).
 
 use hirad_core::geom::Aabb;
 
@@ -15,7 +15,7 @@ pub(super) fn flat_bits(t: &Aabb) -> u8 {
 /// stays set when every item that touches the plane of `b`'s min (max) face along axis `a`
 /// has that bit, i.e. lies in that plane. A ray lying in such a face's plane meets only
 /// triangles lying in the plane (coplanar with the ray: never hit, see
-/// [`Ray4::flat_in_plane`](super::ray4::Ray4::flat_in_plane)) and triangles whose boxes it misses (strictly on one side).
+/// `Slab8::flat_in_plane`) and triangles whose boxes it misses (strictly on one side).
 pub(super) fn face_bits(b: &Aabb, items: impl Iterator<Item = (Aabb, u8)>) -> u8 {
     let mut m = 0b11_1111u8;
     for (x, f) in items {

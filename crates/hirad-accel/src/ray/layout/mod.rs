@@ -1,6 +1,6 @@
 //! Traversal layout of a cluster tree ([`Layout`]): the tree's own nodes and triangles stored
-//! for 4-wide SIMD box tests and packet triangle tests, in depth-first pre-order (a subtree is
-//! contiguous). No node is added, and every triangle is tested behind the box of the node it is
+//! for 8-wide SIMD box tests and packet triangle tests, in depth-first order. No node is added
+//! (a node of more than eight lanes continues in a second eight-wide node), and every triangle is tested behind the box of the node it is
 //! attached to (or of a piece of that node's run); [`Boxes`] chooses which boxes are tested, and
 //! with [`Boxes::Tight`] inner children are pulled up into their parent's lanes.
 //!
@@ -8,7 +8,8 @@
 //! - `run_tree`: a node's long own run split into boxed pieces, and its cost model;
 //! - `packets`: triangles four or sixteen to a packet, and the run tests;
 //! - `faces`: face bits, which let a ray lying in a face's plane skip the lane;
-//! - `ray4`: the 4-wide slab test of a group;
+//! - `node8`: the groups turned into eight-wide nodes, which the queries traverse;
+//! - `slab8`: the 8-wide slab test of a node;
 //! - `build`: `Layout::new`, which lays a tree out.
 
 mod build;
