@@ -197,7 +197,7 @@ struct Entry {
 ///
 /// [`RayCaster::new`] lays the tree out for traversal (`ray/layout/`; with tight boxes, inner
 /// children pulled up into their parent's lanes, up to eight, as wide BVHs collapse binary
-/// ones): each node as one [`Node8`](layout::Nodes8) of up to eight child boxes with
+/// ones): each node as one `Node8` of up to eight child boxes with
 /// contiguous planes (one 8-wide slab test per node; a node of more lanes continues in a
 /// second one), leaves encoded in their parent's child reference, the triangles attached to
 /// each node (inner nodes included) in packets of four for a SIMD edge-function test,

@@ -1,7 +1,8 @@
 //! Traversal layout of a cluster tree ([`Layout`]): the tree's own nodes and triangles stored
-//! for 8-wide SIMD box tests and packet triangle tests, in depth-first order. No node is added
-//! (a node of more than eight lanes continues in a second eight-wide node), and every triangle is tested behind the box of the node it is
-//! attached to (or of a piece of that node's run); [`Boxes`] chooses which boxes are tested, and
+//! for 8-wide SIMD box tests and packet triangle tests, in depth-first order. No node is
+//! added (a node of more than eight lanes continues in a second eight-wide node), and every
+//! triangle is tested behind the box of the node it is attached to (or of a piece of that
+//! node's run); [`Boxes`] chooses which boxes are tested, and
 //! with [`Boxes::Tight`] inner children are pulled up into their parent's lanes.
 //!
 //! - `encode`: child references (group, leaf or chunk in place, own run) and the [`Group`];
@@ -91,10 +92,10 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 ///   packet), so reaching a leaf reads only its triangles.
 /// - Triangles are stored four to a [`Packet`] (structure of arrays, one SIMD edge test for
 ///   four triangles); each node's run starts a new packet, unused lanes are masked out. Runs of
-///   [`WIDE_MIN`] triangles or more (surfaces attached at inner nodes of `kdt`, `obt`, `okdt`,
-///   large leaves) are stored sixteen to a [`Wide`] packet instead, tested in one AVX-512 pass
-///   where the CPU has it (four SSE passes otherwise). Which array a run lives in follows
-///   from its length alone.
+///   [`WIDE_MIN`](packets::WIDE_MIN) triangles or more (surfaces attached at inner nodes of
+///   `kdt`, `obt`, `okdt`, large leaves) are stored sixteen to a [`Wide`] packet instead,
+///   tested in one AVX-512 pass where the CPU has it (four SSE passes otherwise). Which array
+///   a run lives in follows from its length alone.
 ///
 /// With tight boxes ([`Boxes::Tight`], [`Boxes::Nodes`]) every box is tight around what lies
 /// below its node, whatever box the strategy gave it (`kdt`/`obt` nodes keep their k-d cells,
@@ -115,15 +116,17 @@ pub(in crate::ray) struct Layout {
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
     /// The nodes' groups (the build's form of the nodes, turned into
-    /// [`Nodes8`](node8::Nodes8) for the queries).
+    /// [`Nodes8`] for the queries).
     pub groups: Vec<Group>,
     /// Per group, 6 bits per lane ([`faces::face_bits`]): bit `a` (`3 + a`) set when everything in
     /// the lane that touches the plane of the box's min (max) face along axis `a` lies in
     /// that plane.
     pub faces: Vec<u32>,
-    /// Triangles of runs shorter than [`WIDE_MIN`], in node order, four to a packet.
+    /// Triangles of runs shorter than [`WIDE_MIN`](packets::WIDE_MIN), in node order, four to
+    /// a packet.
     pub packets: Vec<Packet>,
-    /// Triangles of runs of [`WIDE_MIN`] or more, in node order, sixteen to a packet.
+    /// Triangles of runs of [`WIDE_MIN`](packets::WIDE_MIN) or more, in node order, sixteen to
+    /// a packet.
     pub wide: Vec<Wide>,
 }
 
