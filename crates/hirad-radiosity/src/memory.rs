@@ -22,8 +22,9 @@ pub const THREAD_SCRATCH_BYTES: u64 = 8_000_000;
 
 /// Bytes per input triangle of the cluster tree (17–18 on the shared scenes).
 const TREE_PER_TRIANGLE: u64 = 20;
-/// Bytes per input triangle of the ray layout and the visibility ranks (52–61).
-const LAYOUT_PER_TRIANGLE: u64 = 64;
+/// Bytes per input triangle of the ray layout and the visibility ranks (about 54–64 with
+/// eight-wide nodes).
+const LAYOUT_PER_TRIANGLE: u64 = 68;
 /// Bytes per input triangle of coplanar overlaps and shut masks (22–34 on the large scenes).
 const COVERS_PER_TRIANGLE: u64 = 40;
 /// Bytes per root surface element of the initial element arena, clusters and per-element
