@@ -216,7 +216,8 @@ struct Entry {
 /// Where the CPU has AVX2 the queries run a copy of the traversal compiled for it, which tests
 /// a node's eight boxes in one AVX pass (the same f32 operations per lane, hence the same
 /// masks) and decides a packet of four triangles at once, hit distances in 4-wide f64
-/// (`watertight::hits4_avx`, the scalar test's operations). An occlusion query takes the hit
+/// (`watertight::hits4_avx`, the scalar test's operations), and a packet of sixteen in one
+/// AVX-512 pass where the CPU has it (`watertight::hits16_avx512`). An occlusion query takes the hit
 /// children of a node in lane order, not by distance (as Embree's occlusion rays do: the sort
 /// cost more than the visits it saved, `docs/perf-log.md` 2026-12-05 (23)), the lanes having
 /// been ordered by their chance of blocking a ray per cost (`occlusion_order` in

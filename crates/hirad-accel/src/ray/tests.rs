@@ -654,6 +654,101 @@ fn a_node_of_twenty_lanes_continues_in_two_more_nodes() {
     assert_eq!(out, (0..2 * n).map(|k| k % 2 == 0).collect::<Vec<_>>());
 }
 
+/// A closest hit so far: triangle id and barycentric coordinates.
+type Best = Option<(u32, f32, f32)>;
+
+#[test]
+fn wide_packets_answer_alike_with_every_instruction_set() {
+    // A root run of 40 random triangles (three wide packets: 16 + 16 + 8 lanes), tested by
+    // the baseline (edge masks, then the scalar test), the AVX2 (four lanes at a time) and
+    // the AVX-512 packet tests: the same occluder (the first hit in run order that `skip`
+    // does not leave out) and the same closest hit as a loop over the run's triangles.
+    let n = 41usize;
+    let mut g = hirad_core::rng::SplitMix64::new(5);
+    // Coordinates on a coarse grid: hits at the range's ends and zero edge functions occur.
+    let mut c = || (g.next_u64() % 9) as f32 * 0.5 - 2.0;
+    let mut corners: Vec<[Vec3; 3]> = Vec::new();
+    while corners.len() < n {
+        let t: [Vec3; 3] = std::array::from_fn(|_| Vec3::new(c(), c(), c()));
+        if (t[1] - t[0]).cross(t[2] - t[0]) != Vec3::ZERO {
+            corners.push(t);
+        }
+    }
+    let s = tri_scene("wide", n, |i| corners[i]);
+    assert_eq!(s.num_triangles(), n);
+    let t = root_and_leaf(&s, (0..40).collect(), 40);
+    let l = layout::Layout::new(&s, &t, Boxes::Nodes);
+    assert_eq!(l.wide.len(), 3);
+    let run: Vec<u32> = (0..40).map(|k| l.wide[k / 16].id[k % 16]).collect();
+    let (mut hits, mut found) = (0, 0);
+    for i in 0..4000 {
+        let (o, q) = (Vec3::new(c(), c(), c()), Vec3::new(c(), c(), c()));
+        let Some(r) = RayPre::new(o, q - o) else {
+            continue;
+        };
+        let (tmin, tmax) = if i % 2 == 0 { (0.0, 1.0) } else { (0.25, 0.75) };
+        let skip = |id: u32| id % 5 == i % 5;
+        let tv = |id: u32| watertight::tri_verts(&s, id as usize);
+        let want = run
+            .iter()
+            .copied()
+            .find(|&id| !skip(id) && intersect(&r, &tv(id), tmin, tmax).is_some());
+        let mut want_closest: Best = None;
+        let mut want_t = tmax;
+        for &id in &run {
+            if let Some((t, u, v)) = intersect(&r, &tv(id), tmin, want_t) {
+                let better = match want_closest {
+                    None => true,
+                    Some((b, _, _)) => t < want_t || id < b,
+                };
+                if better {
+                    (want_t, want_closest) = (t, Some((id, u, v)));
+                }
+            }
+        }
+        let mut tested = 0;
+        assert_eq!(
+            l.any_hit_wide(&r, 0, 40, tmin, tmax, &mut tested, &skip),
+            want
+        );
+        let bits = |bt: f32, b: Best| {
+            (
+                bt.to_bits(),
+                b.map(|(id, u, v)| (id, u.to_bits(), v.to_bits())),
+            )
+        };
+        let want_c = bits(want_t, want_closest);
+        let closest = |f: &dyn Fn(&mut f32, &mut Best)| {
+            let (mut bt, mut b) = (tmax, None);
+            f(&mut bt, &mut b);
+            bits(bt, b)
+        };
+        assert_eq!(
+            closest(&|bt, b| l.closest_hit::<false>(&r, 0, 40, tmin, bt, b)),
+            want_c
+        );
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2() {
+            let range = (tmin, tmax);
+            // SAFETY: AVX2 was detected.
+            let avx2 = unsafe { l.any_hit_wide_avx2(&r, 0, 40, range, &mut tested, &skip) };
+            assert_eq!(avx2, want);
+            let c2 = closest(&|bt, b| unsafe { l.closest_wide_avx2(&r, 0, 40, tmin, bt, b) });
+            assert_eq!(c2, want_c);
+            if layout::has_avx512() {
+                // SAFETY: AVX-512F was detected.
+                let a = unsafe { l.any_hit_wide_avx512(&r, 0, 40, range, &mut tested, &skip) };
+                assert_eq!(a, want);
+                let c = closest(&|bt, b| unsafe { l.closest_wide_avx512(&r, 0, 40, tmin, bt, b) });
+                assert_eq!(c, want_c);
+            }
+        }
+        hits += want.is_some() as u32;
+        found += want_closest.is_some() as u32;
+    }
+    assert!(hits > 400 && found > hits, "{hits} {found}");
+}
+
 #[test]
 fn long_runs_go_to_wide_packets() {
     // A root holding 20 triangles of its own (a run of two wide packets: 16 + 4 lanes) and a

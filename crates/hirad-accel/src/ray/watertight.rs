@@ -308,27 +308,28 @@ unsafe fn edges4<const N: usize>(
     )
 }
 
-/// What [`hits4_avx`] finds for the four lanes of a packet.
+/// What a packet test ([`hits4_avx`], [`hits16_avx512`]) finds for the `N` lanes it decides.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
-pub struct Hits4 {
+pub struct Hits<const N: usize> {
     /// Lanes [`intersect`] reports as hit in `[tmin, tmax]`.
     pub hit: u32,
     /// Lanes with an edge function of exactly zero, which [`intersect`] must decide.
     pub unsure: u32,
-    /// Per lane, [`intersect`]'s `(t, u, v)` (meaningful in `hit` lanes).
-    pub t: [f32; 4],
+    /// Per lane, [`intersect`]'s `(t, u, v)` (meaningful in `hit` lanes; `u` and `v` only from
+    /// a test made with `UV`, else zero).
+    pub t: [f32; N],
     /// Barycentric coordinate of vertex 1.
-    pub u: [f32; 4],
+    pub u: [f32; N],
     /// Barycentric coordinate of vertex 2.
-    pub v: [f32; 4],
+    pub v: [f32; N],
 }
 
 /// [`intersect`] for the four triangles of a [`Tri4`] at once: edge functions in f32 and the hit
 /// distances of all four lanes in 4-wide f64, the same operations in the same order as
 /// [`intersect`] (no fused multiply-adds), hence the same answers. Lanes with an edge function
 /// of exactly zero (recomputed in f64 by [`intersect`]) are left to [`intersect`]
-/// ([`Hits4::unsure`]).
+/// ([`Hits::unsure`]). `UV`: also the barycentric coordinates (not needed by occlusion).
 ///
 /// Not itself compiled for AVX: it is inlined into the AVX2 copies of the traversals (as
 /// `Slab8::test_avx`).
@@ -337,12 +338,28 @@ pub struct Hits4 {
 /// The CPU must support AVX.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub unsafe fn hits4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> Hits4 {
+pub unsafe fn hits4_avx<const UV: bool>(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> Hits<4> {
+    hits4_avx_at::<4, UV>(r, p, 0, tmin, tmax)
+}
+
+/// [`hits4_avx`] for lanes `off..off + 4` of a wider block.
+///
+/// # Safety
+/// The CPU must support AVX, and `off + 4 <= N`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn hits4_avx_at<const N: usize, const UV: bool>(
+    r: &RayPre,
+    p: &[[f32; N]; 9],
+    off: usize,
+    tmin: f32,
+    tmax: f32,
+) -> Hits<4> {
     use core::arch::x86_64::*;
-    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr());
-    let ([u, v, w], mixed, zero_m) = edges4(r, p, 0);
+    let ld = |row: usize| _mm_loadu_ps(p[row].as_ptr().add(off));
+    let ([u, v, w], mixed, zero_m) = edges4(r, p, off);
     let inside = !mixed & !zero_m & 0xF;
-    let mut out = Hits4 {
+    let mut out = Hits {
         hit: 0,
         unsure: zero_m,
         t: [0.0; 4],
@@ -392,10 +409,12 @@ pub unsafe fn hits4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> Hits4 {
         _mm_cmple_ps(t, _mm_set1_ps(tmax)),
     );
     out.hit = inside & det_ok & _mm_movemask_ps(in_range) as u32;
-    let rcp = _mm_div_ps(_mm_set1_ps(1.0), det);
     _mm_storeu_ps(out.t.as_mut_ptr(), t);
-    _mm_storeu_ps(out.u.as_mut_ptr(), _mm_mul_ps(v, rcp));
-    _mm_storeu_ps(out.v.as_mut_ptr(), _mm_mul_ps(w, rcp));
+    if UV {
+        let rcp = _mm_div_ps(_mm_set1_ps(1.0), det);
+        _mm_storeu_ps(out.u.as_mut_ptr(), _mm_mul_ps(v, rcp));
+        _mm_storeu_ps(out.v.as_mut_ptr(), _mm_mul_ps(w, rcp));
+    }
     out
 }
 
@@ -409,6 +428,20 @@ pub unsafe fn hits4_avx(r: &RayPre, p: &Tri4, tmin: f32, tmax: f32) -> Hits4 {
 #[target_feature(enable = "avx512f")]
 #[inline]
 pub unsafe fn candidates16_avx512(r: &RayPre, p: &Tri16) -> u32 {
+    let (_, mixed, zero) = edges16(r, p);
+    (!mixed | zero) & 0xFFFF
+}
+
+/// The sheared edge functions `[u, v, w]` of [`intersect`] for the sixteen lanes of a
+/// [`Tri16`] (as [`edges4`]), with the masks of the lanes whose signs are mixed and of those
+/// with an edge function of exactly zero.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn edges16(r: &RayPre, p: &Tri16) -> ([core::arch::x86_64::__m512; 3], u32, u32) {
     use core::arch::x86_64::*;
     // SAFETY (loads): every row of a Tri16 holds sixteen f32; unaligned loads.
     let ld = |row: usize| unsafe { _mm512_loadu_ps(p[row].as_ptr()) };
@@ -439,7 +472,89 @@ pub unsafe fn candidates16_avx512(r: &RayPre, p: &Tri16) -> u32 {
     let pos = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(u, z)
         | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(v, z)
         | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(w, z);
-    (!(neg & pos) | zero) as u32
+    ([u, v, w], (neg & pos) as u32, zero as u32)
+}
+
+/// [`hits4_avx`] for the sixteen triangles of a [`Tri16`] in AVX-512: the edge functions of
+/// `edges16`, the hit distances of the lanes inside in 8-wide f64, eight lanes at a time
+/// (the operations of [`intersect`] in its order, hence its answers).
+///
+/// # Safety
+/// The CPU must support AVX-512F (`is_x86_feature_detected!("avx512f")`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub unsafe fn hits16_avx512<const UV: bool>(
+    r: &RayPre,
+    p: &Tri16,
+    tmin: f32,
+    tmax: f32,
+) -> Hits<16> {
+    use core::arch::x86_64::*;
+    let ([u, v, w], mixed, zero_m) = edges16(r, p);
+    let inside = !mixed & !zero_m & 0xFFFF;
+    let mut out = Hits {
+        hit: 0,
+        unsure: zero_m,
+        t: [0.0; 16],
+        u: [0.0; 16],
+        v: [0.0; 16],
+    };
+    if inside == 0 {
+        return out;
+    }
+    let det = _mm512_add_ps(_mm512_add_ps(u, v), w);
+    let det_ok = !(_mm512_cmp_ps_mask::<_CMP_EQ_OQ>(det, _mm512_setzero_ps()) as u32);
+    let o = |a: usize| _mm512_set1_pd(r.o[a] as f64);
+    let d = |a: usize| _mm512_set1_pd(r.d[a] as f64);
+    for h in 0..2 {
+        if inside >> (8 * h) & 0xFF == 0 {
+            continue;
+        }
+        // SAFETY (loads): lanes `8h..8h + 8` of a row of sixteen.
+        let f =
+            |row: usize| unsafe { _mm512_cvtps_pd(_mm256_loadu_ps(p[row].as_ptr().add(8 * h))) };
+        let (v0, v1, v2) = ([f(0), f(1), f(2)], [f(3), f(4), f(5)], [f(6), f(7), f(8)]);
+        let e1 = [
+            _mm512_sub_pd(v1[0], v0[0]),
+            _mm512_sub_pd(v1[1], v0[1]),
+            _mm512_sub_pd(v1[2], v0[2]),
+        ];
+        let e2 = [
+            _mm512_sub_pd(v2[0], v0[0]),
+            _mm512_sub_pd(v2[1], v0[1]),
+            _mm512_sub_pd(v2[2], v0[2]),
+        ];
+        let n = [
+            _mm512_sub_pd(_mm512_mul_pd(e1[1], e2[2]), _mm512_mul_pd(e1[2], e2[1])),
+            _mm512_sub_pd(_mm512_mul_pd(e1[2], e2[0]), _mm512_mul_pd(e1[0], e2[2])),
+            _mm512_sub_pd(_mm512_mul_pd(e1[0], e2[1]), _mm512_mul_pd(e1[1], e2[0])),
+        ];
+        let num = _mm512_add_pd(
+            _mm512_add_pd(
+                _mm512_mul_pd(n[0], _mm512_sub_pd(v0[0], o(0))),
+                _mm512_mul_pd(n[1], _mm512_sub_pd(v0[1], o(1))),
+            ),
+            _mm512_mul_pd(n[2], _mm512_sub_pd(v0[2], o(2))),
+        );
+        let den = _mm512_add_pd(
+            _mm512_add_pd(_mm512_mul_pd(n[0], d(0)), _mm512_mul_pd(n[1], d(1))),
+            _mm512_mul_pd(n[2], d(2)),
+        );
+        let t = _mm512_cvtpd_ps(_mm512_div_pd(num, den));
+        _mm256_storeu_ps(out.t.as_mut_ptr().add(8 * h), t);
+    }
+    let t = _mm512_loadu_ps(out.t.as_ptr());
+    // Ordered comparisons: a NaN distance is no hit.
+    let in_range = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(t, _mm512_set1_ps(tmin))
+        & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(t, _mm512_set1_ps(tmax));
+    out.hit = inside & det_ok & in_range as u32;
+    if UV {
+        let rcp = _mm512_div_ps(_mm512_set1_ps(1.0), det);
+        _mm512_storeu_ps(out.u.as_mut_ptr(), _mm512_mul_ps(v, rcp));
+        _mm512_storeu_ps(out.v.as_mut_ptr(), _mm512_mul_ps(w, rcp));
+    }
+    out
 }
 
 /// Convenience: intersect a ray with a triangle given by its corners.
@@ -532,54 +647,93 @@ mod tests {
         }
     }
 
-    #[test]
-    fn four_lane_packet_test_equals_scalar_test() {
-        // `hits4_avx` answers as `intersect` (hit, distance, barycentric coordinates) in every
-        // lane without an edge function of exactly zero, on random rays and triangles with
-        // coordinates on a coarse grid (so that zero edge functions, hit distances exactly at
-        // the range's ends and rays in a triangle's plane occur).
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            let mut g = hirad_core::rng::SplitMix64::new(17);
-            let c = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 7) as f32 * 0.5 - 1.5;
-            let (mut hits, mut misses, mut unsure, mut at_ends) = (0, 0, 0, 0);
-            for i in 0..20000 {
-                let o = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
-                let d = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
-                let Some(r) = RayPre::new(o, d) else { continue };
-                let mut p: Tri4 = [[0.0; 4]; 9];
-                for row in p.iter_mut() {
-                    for x in row.iter_mut() {
-                        *x = c(&mut g);
-                    }
-                }
-                let (tmin, tmax) = if i % 2 == 0 { (0.5, 1.0) } else { (0.0, 2.0) };
-                // SAFETY: AVX was detected above.
-                let h = unsafe { hits4_avx(&r, &p, tmin, tmax) };
-                let (hit, zero) = (h.hit, h.unsure);
-                for lane in 0..4 {
-                    let t = tri_of(&p, lane);
-                    let want = intersect(&r, &t, tmin, tmax);
-                    if zero >> lane & 1 == 1 {
-                        assert_eq!(hit >> lane & 1, 0);
-                        unsure += 1;
-                        continue;
-                    }
-                    assert_eq!(hit >> lane & 1 == 1, want.is_some(), "{o} {d} {t:?}");
-                    if let Some((th, u, v)) = want {
-                        assert_eq!((h.t[lane], h.u[lane], h.v[lane]), (th, u, v));
-                        at_ends += (th == tmin || th == tmax) as u32;
-                        hits += 1;
-                    } else {
-                        misses += 1;
-                    }
+    /// Check a packet test against `intersect` (hit, distance, barycentric coordinates) in
+    /// every lane without an edge function of exactly zero, on random rays and triangles with
+    /// coordinates on a coarse grid (so that zero edge functions, hit distances exactly at the
+    /// range's ends and rays in a triangle's plane occur). `test(r, p, tmin, tmax, uv)`.
+    #[cfg(target_arch = "x86_64")]
+    fn check_packet_test<const N: usize>(
+        seed: u64,
+        rays: usize,
+        test: impl Fn(&RayPre, &[[f32; N]; 9], f32, f32, bool) -> Hits<N>,
+    ) {
+        let mut g = hirad_core::rng::SplitMix64::new(seed);
+        let c = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 7) as f32 * 0.5 - 1.5;
+        let (mut hits, mut misses, mut unsure, mut at_ends) = (0, 0, 0, 0);
+        for i in 0..rays {
+            let o = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+            let d = Vec3::new(c(&mut g), c(&mut g), c(&mut g));
+            let Some(r) = RayPre::new(o, d) else { continue };
+            let mut p = [[0.0; N]; 9];
+            for row in p.iter_mut() {
+                for x in row.iter_mut() {
+                    *x = c(&mut g);
                 }
             }
-            assert!(
-                hits > 1000 && misses > 20000 && unsure > 500,
-                "{hits} {misses} {unsure}"
+            let (tmin, tmax) = if i % 2 == 0 { (0.5, 1.0) } else { (0.0, 2.0) };
+            let (h, h_no_uv) = (
+                test(&r, &p, tmin, tmax, true),
+                test(&r, &p, tmin, tmax, false),
             );
-            assert!(at_ends > 50, "{at_ends}");
+            // The same lanes, and the same distances where hit.
+            let bits = |h: &Hits<N>| {
+                let t: [u32; N] = std::array::from_fn(|i| (h.hit >> i & 1) * h.t[i].to_bits());
+                (h.hit, h.unsure, t)
+            };
+            assert_eq!(bits(&h), bits(&h_no_uv));
+            for lane in 0..N {
+                let t = tri_of(&p, lane);
+                let want = intersect(&r, &t, tmin, tmax);
+                if h.unsure >> lane & 1 == 1 {
+                    assert_eq!(h.hit >> lane & 1, 0);
+                    unsure += 1;
+                    continue;
+                }
+                assert_eq!(h.hit >> lane & 1 == 1, want.is_some(), "{o} {d} {t:?}");
+                if let Some((th, u, v)) = want {
+                    assert_eq!((h.t[lane], h.u[lane], h.v[lane]), (th, u, v));
+                    at_ends += (th == tmin || th == tmax) as u32;
+                    hits += 1;
+                } else {
+                    misses += 1;
+                }
+            }
+        }
+        let k = N as u32 / 4;
+        assert!(
+            hits > 1000 * k && misses > 20000 * k && unsure > 500 * k,
+            "{hits} {misses} {unsure}"
+        );
+        assert!(at_ends > 50 * k, "{at_ends}");
+    }
+
+    #[test]
+    fn four_lane_packet_test_equals_scalar_test() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: AVX was detected above.
+            check_packet_test::<4>(17, 20000, |r, p, tmin, tmax, uv| unsafe {
+                if uv {
+                    hits4_avx::<true>(r, p, tmin, tmax)
+                } else {
+                    hits4_avx::<false>(r, p, tmin, tmax)
+                }
+            });
+        }
+    }
+
+    #[test]
+    fn sixteen_lane_packet_test_equals_scalar_test() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: AVX-512F was detected above.
+            check_packet_test::<16>(23, 20000, |r, p, tmin, tmax, uv| unsafe {
+                if uv {
+                    hits16_avx512::<true>(r, p, tmin, tmax)
+                } else {
+                    hits16_avx512::<false>(r, p, tmin, tmax)
+                }
+            });
         }
     }
 

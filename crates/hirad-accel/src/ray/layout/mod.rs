@@ -29,6 +29,8 @@ pub(in crate::ray) use encode::{leaf_run, LEAF, RUN};
 pub(in crate::ray) use node8::Node8;
 pub(in crate::ray) use node8::{is_leaf, Nodes8};
 #[cfg(test)]
+pub(in crate::ray) use packets::has_avx512;
+#[cfg(test)]
 pub(in crate::ray) use packets::WIDE_MIN;
 pub(in crate::ray) use packets::{Packet, Wide};
 pub(in crate::ray) use slab8::Slab8;

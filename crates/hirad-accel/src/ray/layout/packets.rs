@@ -1,12 +1,13 @@
-//! Triangle storage, four ([`Packet`]) or sixteen ([`Wide`]) to a packet in
-//! structure-of-arrays form, and the tests of a triangle run (SIMD candidate masks, then the
-//! scalar watertight test; AVX-512 for wide packets where the CPU has it).
+//! Triangle storage, four ([`Packet`]) or sixteen ([`Wide`]) to a packet in structure-of-arrays
+//! form, and the tests of a triangle run: in the baseline, SIMD candidate masks then the
+//! scalar watertight test; in the AVX2 copies of the traversals, packet tests that decide every
+//! lane as the scalar test would (sixteen lanes in one pass where the CPU has AVX-512).
 
 use super::super::watertight::{
     candidates4, candidates4_at, intersect, tri_of, RayPre, Tri16, Tri4,
 };
 #[cfg(target_arch = "x86_64")]
-use super::super::watertight::{hits4_avx, Hits4};
+use super::super::watertight::{hits16_avx512, hits4_avx, hits4_avx_at, Hits};
 use super::Layout;
 
 /// Shortest triangle run stored in [`Wide`] packets.
@@ -22,7 +23,7 @@ pub(in crate::ray) struct Wide {
 
 /// Whether the AVX-512 edge test can run here (checked once, then cached by std).
 #[inline(always)]
-pub(super) fn has_avx512() -> bool {
+pub(in crate::ray) fn has_avx512() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx512f")
@@ -89,6 +90,18 @@ impl Layout {
         skip: &F,
     ) -> Option<u32> {
         if n >= WIDE_MIN {
+            #[cfg(target_arch = "x86_64")]
+            if AVX {
+                // SAFETY: `AVX` is set only in the AVX2 copies of the traversals; AVX-512F is
+                // checked.
+                return unsafe {
+                    if has_avx512() {
+                        self.any_hit_wide_avx512(r, ps, n, (tmin, tmax), tested, skip)
+                    } else {
+                        self.any_hit_wide_avx2(r, ps, n, (tmin, tmax), tested, skip)
+                    }
+                };
+            }
             return self.any_hit_wide(r, ps, n, tmin, tmax, tested, skip);
         }
         for k in 0..n.div_ceil(4) {
@@ -98,14 +111,10 @@ impl Layout {
             #[cfg(target_arch = "x86_64")]
             if AVX {
                 // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
-                let h = unsafe { hits4_avx(r, &p.v, tmin, tmax) };
-                let mut m = (h.hit | h.unsure) & valid;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if !skip(p.id[i]) && lane_hit(r, p, &h, i, (tmin, tmax)).is_some() {
-                        return Some(p.id[i]);
-                    }
+                let h = unsafe { hits4_avx::<false>(r, &p.v, tmin, tmax) };
+                let hit = any_of_hits(r, (&p.v, &p.id, 0), &h, valid, (tmin, tmax), skip);
+                if hit.is_some() {
+                    return hit;
                 }
                 continue;
             }
@@ -140,6 +149,18 @@ impl Layout {
         best: &mut Option<(u32, f32, f32)>,
     ) {
         if n >= WIDE_MIN {
+            #[cfg(target_arch = "x86_64")]
+            if AVX {
+                // SAFETY: as in `any_hit`.
+                unsafe {
+                    if has_avx512() {
+                        self.closest_wide_avx512(r, ps, n, tmin, best_t, best);
+                    } else {
+                        self.closest_wide_avx2(r, ps, n, tmin, best_t, best);
+                    }
+                }
+                return;
+            }
             let avx512 = has_avx512();
             for k in 0..n.div_ceil(16) {
                 let w = &self.wide[ps + k];
@@ -153,17 +174,9 @@ impl Layout {
             #[cfg(target_arch = "x86_64")]
             if AVX {
                 // SAFETY: `AVX` is set only in the AVX2 copies of the traversals.
-                let h = unsafe { hits4_avx(r, &p.v, tmin, *best_t) };
-                let valid = lane_mask::<4>(n, k);
-                let mut m = (h.hit | h.unsure) & valid;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    // With the current `best_t`, as `closest_of` calls `intersect`.
-                    if let Some(x) = lane_hit(r, p, &h, i, (tmin, *best_t)) {
-                        take_closer(best_t, best, p.id[i], x);
-                    }
-                }
+                let h = unsafe { hits4_avx::<true>(r, &p.v, tmin, *best_t) };
+                let m = lane_mask::<4>(n, k);
+                closest_of_hits(r, (&p.v, &p.id, 0), &h, m, tmin, best_t, best);
                 continue;
             }
             let m = candidates4(r, &p.v) & lane_mask::<4>(n, k);
@@ -174,7 +187,7 @@ impl Layout {
     /// [`Layout::any_hit`] of a run stored in wide packets.
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
-    fn any_hit_wide<F: Fn(u32) -> bool>(
+    pub(in crate::ray) fn any_hit_wide<F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
         ps: usize,
@@ -197,24 +210,184 @@ impl Layout {
         }
         None
     }
+
+    /// [`Layout::any_hit`] of a run stored in wide packets, each decided by one
+    /// [`hits16_avx512`].
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,popcnt,bmi1,bmi2,lzcnt")]
+    #[inline(never)]
+    pub(in crate::ray) unsafe fn any_hit_wide_avx512<F: Fn(u32) -> bool>(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        range: (f32, f32),
+        tested: &mut u64,
+        skip: &F,
+    ) -> Option<u32> {
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let valid = lane_mask::<16>(n, k);
+            *tested += valid.count_ones() as u64;
+            let h = hits16_avx512::<false>(r, &w.v, range.0, range.1);
+            let hit = any_of_hits(r, (&w.v, &w.id, 0), &h, valid, range, skip);
+            if hit.is_some() {
+                return hit;
+            }
+        }
+        None
+    }
+
+    /// [`Layout::any_hit`] of a run stored in wide packets, four lanes at a time by
+    /// [`hits4_avx_at`] (CPUs without AVX-512).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,bmi2,lzcnt")]
+    #[inline(never)]
+    pub(in crate::ray) unsafe fn any_hit_wide_avx2<F: Fn(u32) -> bool>(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        range: (f32, f32),
+        tested: &mut u64,
+        skip: &F,
+    ) -> Option<u32> {
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let valid = lane_mask::<16>(n, k);
+            *tested += valid.count_ones() as u64;
+            for q in 0..4 {
+                let m = valid >> (4 * q) & 0xF;
+                if m != 0 {
+                    let h = hits4_avx_at::<16, false>(r, &w.v, 4 * q, range.0, range.1);
+                    let hit = any_of_hits(r, (&w.v, &w.id, 4 * q), &h, m, range, skip);
+                    if hit.is_some() {
+                        return hit;
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// [`Layout::closest_hit`] of a run stored in wide packets, each tested by one
+    /// [`hits16_avx512`].
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,popcnt,bmi1,bmi2,lzcnt")]
+    #[inline(never)]
+    pub(in crate::ray) unsafe fn closest_wide_avx512(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        best_t: &mut f32,
+        best: &mut Option<(u32, f32, f32)>,
+    ) {
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let h = hits16_avx512::<true>(r, &w.v, tmin, *best_t);
+            let m = lane_mask::<16>(n, k);
+            closest_of_hits(r, (&w.v, &w.id, 0), &h, m, tmin, best_t, best);
+        }
+    }
+
+    /// [`Layout::closest_hit`] of a run stored in wide packets, four lanes at a time by
+    /// [`hits4_avx_at`] (CPUs without AVX-512).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,popcnt,bmi1,bmi2,lzcnt")]
+    #[inline(never)]
+    pub(in crate::ray) unsafe fn closest_wide_avx2(
+        &self,
+        r: &RayPre,
+        ps: usize,
+        n: usize,
+        tmin: f32,
+        best_t: &mut f32,
+        best: &mut Option<(u32, f32, f32)>,
+    ) {
+        for k in 0..n.div_ceil(16) {
+            let w = &self.wide[ps + k];
+            let valid = lane_mask::<16>(n, k);
+            for q in 0..4 {
+                let m = valid >> (4 * q) & 0xF;
+                if m != 0 {
+                    let h = hits4_avx_at::<16, true>(r, &w.v, 4 * q, tmin, *best_t);
+                    closest_of_hits(r, (&w.v, &w.id, 4 * q), &h, m, tmin, best_t, best);
+                }
+            }
+        }
+    }
 }
 
-/// [`intersect`]'s answer for lane `i` of packet `p` in `[tmin, tmax]`, from the packet test `h`
-/// of `p` (made with a range containing this one) or, for a lane it left unsure, from
-/// [`intersect`] itself.
+/// The first of the lanes `m` (of the `M` that the packet test `h` decided, lanes `off..off +
+/// M` of the block `(v, ids)`) whose triangle `skip` does not leave out and that
+/// [`intersect`] hits in `range` (its id), if any: `h`'s hits as they are, its unsure lanes by
+/// [`intersect`]. `h` was made with `range`.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn lane_hit(
+fn any_of_hits<const N: usize, const M: usize, F: Fn(u32) -> bool>(
     r: &RayPre,
-    p: &Packet,
-    h: &Hits4,
-    i: usize,
-    (tmin, tmax): (f32, f32),
-) -> Option<(f32, f32, f32)> {
-    if h.hit >> i & 1 == 1 {
-        (h.t[i] <= tmax).then_some((h.t[i], h.u[i], h.v[i]))
-    } else {
-        intersect(r, &tri_of(&p.v, i), tmin, tmax)
+    (v, ids, off): (&[[f32; N]; 9], &[u32; N], usize),
+    h: &Hits<M>,
+    m: u32,
+    range: (f32, f32),
+    skip: &F,
+) -> Option<u32> {
+    let mut m = (h.hit | h.unsure) & m;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let id = ids[off + i];
+        if !skip(id)
+            && (h.hit >> i & 1 == 1
+                || intersect(r, &tri_of(v, off + i), range.0, range.1).is_some())
+        {
+            return Some(id);
+        }
+    }
+    None
+}
+
+/// [`closest_of`] over the lanes `m` of a packet test `h` made with the range `[tmin,
+/// *best_t]` (lanes `off..off + M` of the block `(v, ids)`): a hit lane is taken with its
+/// distance checked against the current `*best_t`, an unsure one from [`intersect`], as
+/// [`closest_of`] would find them.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn closest_of_hits<const N: usize, const M: usize>(
+    r: &RayPre,
+    (v, ids, off): (&[[f32; N]; 9], &[u32; N], usize),
+    h: &Hits<M>,
+    m: u32,
+    tmin: f32,
+    best_t: &mut f32,
+    best: &mut Option<(u32, f32, f32)>,
+) {
+    let mut m = (h.hit | h.unsure) & m;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let x = if h.hit >> i & 1 == 1 {
+            (h.t[i] <= *best_t).then_some((h.t[i], h.u[i], h.v[i]))
+        } else {
+            intersect(r, &tri_of(v, off + i), tmin, *best_t)
+        };
+        if let Some(x) = x {
+            take_closer(best_t, best, ids[off + i], x);
+        }
     }
 }
 
