@@ -49,7 +49,7 @@ static void *cast(void *arg) {
 }
 
 int main(int argc, char **argv) {
-  if (argc < 2) { fprintf(stderr, "usage: %s FILE [medium|high] [THREADS]\n", argv[0]); return 2; }
+  if (argc < 2) { fprintf(stderr, "usage: %s FILE [medium|high] [THREADS] [robust]\n", argv[0]); return 2; }
   FILE *f = fopen(argv[1], "rb");
   if (!f) { perror(argv[1]); return 2; }
   unsigned nt, ns;
@@ -58,6 +58,7 @@ int main(int argc, char **argv) {
   fclose(f);
   int high = argc > 2 && !strcmp(argv[2], "high");
   int nth = argc > 3 ? atoi(argv[3]) : 1;
+  int robust = argc > 4 && !strcmp(argv[4], "robust");
   if (nth < 1 || nth > 256) { fprintf(stderr, "THREADS must be 1 to 256\n"); return 2; }
   RTCDevice dev = rtcNewDevice("threads=1");
   RTCScene sc = rtcNewScene(dev);
@@ -66,6 +67,7 @@ int main(int argc, char **argv) {
   unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, nt);
   memcpy(vb, tv, 36 * (size_t)nt);
   for (unsigned i = 0; i < 3 * nt; i++) ib[i] = i;
+  if (robust) rtcSetSceneFlags(sc, RTC_SCENE_FLAG_ROBUST);
   if (high) {
     rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_HIGH);
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
@@ -95,8 +97,8 @@ int main(int argc, char **argv) {
     ts[rep] = now() - t0;
   }
   qsort(ts, 5, sizeof(double), cmp);
-  printf("embree %s, %d thread%s: %u triangles, %u segments, build %.1f ms, query %.1f ms, %.3f Mrays/s, occluded %u\n",
-         high ? "high" : "medium", nth, nth > 1 ? "s" : "", nt, ns, build * 1e3, ts[2] * 1e3, ns / ts[2] / 1e6, occluded);
+  printf("embree %s%s, %d thread%s: %u triangles, %u segments, build %.1f ms, query %.1f ms, %.3f Mrays/s, occluded %u\n",
+         high ? "high" : "medium", robust ? " robust" : "", nth, nth > 1 ? "s" : "", nt, ns, build * 1e3, ts[2] * 1e3, ns / ts[2] / 1e6, occluded);
   rtcReleaseScene(sc);
   rtcReleaseDevice(dev);
   return 0;

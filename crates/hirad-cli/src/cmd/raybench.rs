@@ -1,7 +1,9 @@
 //! `hirad raybench`: the paper's ray-casting test (`experiments.md` §2). Random segments between
 //! surface points are cast through each strategy's `ClusterTree`; prints build time, query time,
 //! Mrays/s, occluded count, speed relative to `sah`, and mean nodes visited / triangle tests per
-//! ray (counted in a separate pass, so the timed pass runs the uninstrumented code).
+//! ray (counted in a separate pass, so the timed pass runs the uninstrumented code). The
+//! strategies take turns during the timed passes, so that their ratios hold while the
+//! machine's speed drifts.
 
 use crate::Global;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
@@ -27,7 +29,9 @@ pub struct Args {
     /// Also time closest-hit queries with the same segments.
     #[arg(long)]
     pub closest: bool,
-    /// Timed repetitions of each query pass; the median is reported.
+    /// Timed passes over the segments (the mean is reported). All strategies are built first
+    /// and take turns every 16,384 segments within a pass, so that the machine's speed drift
+    /// weighs on each alike.
     #[arg(long, default_value_t = 3)]
     pub repeat: usize,
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
@@ -103,9 +107,74 @@ struct Report {
     rows: Vec<Row>,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
+/// Segments each strategy casts in its turn of a timed pass.
+const TURN: usize = 16_384;
+
+/// Seconds each strategy spent on the timed passes, and its occluded count.
+struct Times {
+    batch: Vec<f64>,
+    single: Vec<f64>,
+    closest: Vec<f64>,
+    occluded: Vec<u64>,
+}
+
+/// Time `repeat` passes of `segs` through every caster: batch occlusion, single queries and
+/// (with `closest`) closest hits. Within a pass the casters take turns every [`TURN`]
+/// segments, in an order rotated at each turn, so that the machine's speed drift weighs on
+/// every strategy alike. Fails when a strategy's single queries and batch disagree.
+fn time_turns(
+    casters: &[(RayCaster, f64)],
+    segs: &[hirad::ray::Segment],
+    repeat: usize,
+    closest: bool,
+    tick: impl Fn(),
+) -> anyhow::Result<Times> {
+    use rayon::prelude::*;
+    let n = casters.len();
+    let mut t = Times {
+        batch: vec![0.0; n],
+        single: vec![0.0; n],
+        closest: vec![0.0; n],
+        occluded: vec![0; n],
+    };
+    for pass in 0..repeat {
+        let mut batch = vec![0u64; n];
+        let mut single = vec![0u64; n];
+        for (k, c) in segs.chunks(TURN).enumerate() {
+            for j in 0..n {
+                let i = (j + k + pass) % n;
+                let rc = &casters[i].0;
+                let t0 = Instant::now();
+                batch[i] += rc.count_occluded(c);
+                t.batch[i] += t0.elapsed().as_secs_f64();
+                let t0 = Instant::now();
+                single[i] += c
+                    .par_iter()
+                    .with_min_len(256)
+                    .filter(|s| rc.occluded(s.origin, s.dir, s.tmin, s.tmax))
+                    .count() as u64;
+                t.single[i] += t0.elapsed().as_secs_f64();
+                if closest {
+                    let t0 = Instant::now();
+                    std::hint::black_box(rc.closest_batch(c));
+                    t.closest[i] += t0.elapsed().as_secs_f64();
+                }
+            }
+            tick();
+        }
+        for i in 0..n {
+            if single[i] != batch[i] {
+                return Err(anyhow::anyhow!(
+                    "{}: single-ray occluded count {} differs from the batch count {}",
+                    casters[i].0.tree.strategy,
+                    single[i],
+                    batch[i]
+                ));
+            }
+        }
+        t.occluded = batch;
+    }
+    Ok(t)
 }
 
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
@@ -133,53 +202,41 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     }
     let cfg = ClusterConfig::default();
     let bars = crate::progress::Bars::new(g.quiet || g.json);
-    bars.start("raybench", strategies.len() as u64);
-    let mut rows = Vec::new();
-    let mut brute_occluded = None;
+    bars.start(
+        "raybench",
+        (2 * strategies.len() + repeat * segs.len().div_ceil(TURN)) as u64,
+    );
+    // Every strategy's tree and layout first, all held at once, so that the timed passes can
+    // take turns between them.
+    let mut trees = Vec::with_capacity(strategies.len());
     for &st in &strategies {
-        bars.message(st.name());
+        bars.message(&format!("building {st}"));
         let t0 = Instant::now();
         let tree = ClusterTree::build(&scene, st, &cfg);
-        let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+        trees.push((tree, t0.elapsed().as_secs_f64() * 1e3));
+        bars.inc(1);
+    }
+    let mut casters = Vec::with_capacity(strategies.len());
+    for (st, (tree, _)) in strategies.iter().zip(&trees) {
+        bars.message(&format!("laying out {st}"));
         let t0 = Instant::now();
-        let rc = RayCaster::with_boxes(&scene, &tree, boxes);
-        let layout_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let mut times = Vec::with_capacity(repeat);
-        let mut occluded = 0;
-        for _ in 0..repeat {
-            let t0 = Instant::now();
-            occluded = rc.count_occluded(&segs);
-            times.push(t0.elapsed().as_secs_f64() * 1e3);
-        }
-        let query_ms = median(times);
-        let mut times = Vec::with_capacity(repeat);
-        for _ in 0..repeat {
-            use rayon::prelude::*;
-            let t0 = Instant::now();
-            let n = segs
-                .par_iter()
-                .with_min_len(256)
-                .filter(|s| rc.occluded(s.origin, s.dir, s.tmin, s.tmax))
-                .count() as u64;
-            times.push(t0.elapsed().as_secs_f64() * 1e3);
-            if n != occluded {
-                return Err(anyhow::anyhow!(
-                    "{st}: single-ray occluded count {n} differs from the batch count {occluded}"
-                ));
-            }
-        }
-        let single_ms = median(times);
+        let rc = RayCaster::with_boxes(&scene, tree, boxes);
+        casters.push((rc, t0.elapsed().as_secs_f64() * 1e3));
+        bars.inc(1);
+    }
+    bars.message("casting");
+    let times = time_turns(&casters, &segs, repeat, args.closest, || bars.inc(1))?;
+    let mut rows = Vec::new();
+    let mut brute_occluded = None;
+    for (k, ((rc, layout_ms), (tree, build_ms))) in casters.iter().zip(&trees).enumerate() {
+        let st = strategies[k];
+        let ms = |s: f64| s * 1e3 / repeat as f64;
+        let (query_ms, single_ms) = (ms(times.batch[k]), ms(times.single[k]));
+        let occluded = times.occluded[k];
         let (occ2, stats): (u64, RayStats) = rc.occluded_batch_stats(&segs);
         debug_assert_eq!(occ2, occluded);
         let closest = if args.closest {
-            let mut times = Vec::with_capacity(repeat);
-            for _ in 0..repeat {
-                let t0 = Instant::now();
-                let h = rc.closest_batch(&segs);
-                times.push(t0.elapsed().as_secs_f64() * 1e3);
-                std::hint::black_box(h);
-            }
-            let q = median(times);
+            let q = ms(times.closest[k]);
             let (hits, cs) = rc.closest_batch_stats(&segs);
             Some(ClosestRow {
                 query_ms: q,
@@ -203,8 +260,8 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         rows.push(Row {
             strategy: st.name().to_string(),
             clusters: tree.nodes.len(),
-            build_ms,
-            layout_ms,
+            build_ms: *build_ms,
+            layout_ms: *layout_ms,
             query_ms,
             mrays_per_s: segs.len() as f64 / (query_ms * 1e3),
             single_mrays_per_s: segs.len() as f64 / (single_ms * 1e3),
@@ -215,7 +272,6 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
             tris_per_ray: stats.tris_per_ray(),
             closest,
         });
-        bars.inc(1);
     }
     bars.finish();
     if let Some(sah) = rows.iter().position(|r| r.strategy == "sah") {
