@@ -30,8 +30,8 @@ pub struct Args {
     #[arg(long)]
     pub closest: bool,
     /// Timed passes over the segments (the mean is reported). All strategies are built first
-    /// and take turns every 16,384 segments within a pass, so that the machine's speed drift
-    /// weighs on each alike.
+    /// and take turns every 16,384 segments within a pass (each turn after 1,024 untimed
+    /// ones), so that the machine's speed drift weighs on each alike.
     #[arg(long, default_value_t = 3)]
     pub repeat: usize,
     /// Also count occluded segments by brute force (every triangle per segment; small scenes).
@@ -110,6 +110,9 @@ struct Report {
 /// Segments each strategy casts in its turn of a timed pass.
 const TURN: usize = 16_384;
 
+/// Segments of a turn cast untimed first (its caster's data back in the caches).
+const WARM: usize = 1_024;
+
 /// Seconds each strategy spent on the timed passes, and its occluded count.
 struct Times {
     batch: Vec<f64>,
@@ -121,7 +124,8 @@ struct Times {
 /// Time `repeat` passes of `segs` through every caster: batch occlusion, single queries and
 /// (with `closest`) closest hits. Within a pass the casters take turns every [`TURN`]
 /// segments, in an order rotated at each turn, so that the machine's speed drift weighs on
-/// every strategy alike. Fails when a strategy's single queries and batch disagree.
+/// every strategy alike; each turn starts with [`WARM`] segments cast untimed. Fails when a
+/// strategy's single queries and batch disagree.
 fn time_turns(
     casters: &[(RayCaster, f64)],
     segs: &[hirad::ray::Segment],
@@ -144,6 +148,9 @@ fn time_turns(
             for j in 0..n {
                 let i = (j + k + pass) % n;
                 let rc = &casters[i].0;
+                // Untimed: bring the caster's upper levels back into the caches the others
+                // used since its last turn.
+                std::hint::black_box(rc.count_occluded(&c[..WARM.min(c.len())]));
                 let t0 = Instant::now();
                 batch[i] += rc.count_occluded(c);
                 t.batch[i] += t0.elapsed().as_secs_f64();
