@@ -731,15 +731,16 @@ fn wide_packets_answer_alike_with_every_instruction_set() {
         if has_avx2() {
             let range = (tmin, tmax);
             // SAFETY: AVX2 was detected.
-            let avx2 = unsafe { l.any_hit_wide_avx2(&r, 0, 40, range, &mut tested, &skip) };
+            let avx2 = unsafe { l.any_hit_wide_avx2(&r, (0, 40), range, &mut tested, &skip) };
             assert_eq!(avx2, want);
-            let c2 = closest(&|bt, b| unsafe { l.closest_wide_avx2(&r, 0, 40, tmin, bt, b) });
+            let c2 = closest(&|bt, b| unsafe { l.closest_wide_avx2(&r, (0, 40), tmin, bt, b) });
             assert_eq!(c2, want_c);
             if layout::has_avx512() {
                 // SAFETY: AVX-512F was detected.
-                let a = unsafe { l.any_hit_wide_avx512(&r, 0, 40, range, &mut tested, &skip) };
+                let a = unsafe { l.any_hit_wide_avx512(&r, (0, 40), range, &mut tested, &skip) };
                 assert_eq!(a, want);
-                let c = closest(&|bt, b| unsafe { l.closest_wide_avx512(&r, 0, 40, tmin, bt, b) });
+                let c =
+                    closest(&|bt, b| unsafe { l.closest_wide_avx512(&r, (0, 40), tmin, bt, b) });
                 assert_eq!(c, want_c);
             }
         }

@@ -96,9 +96,9 @@ impl Layout {
                 // checked.
                 return unsafe {
                     if has_avx512() {
-                        self.any_hit_wide_avx512(r, ps, n, (tmin, tmax), tested, skip)
+                        self.any_hit_wide_avx512(r, (ps, n), (tmin, tmax), tested, skip)
                     } else {
-                        self.any_hit_wide_avx2(r, ps, n, (tmin, tmax), tested, skip)
+                        self.any_hit_wide_avx2(r, (ps, n), (tmin, tmax), tested, skip)
                     }
                 };
             }
@@ -154,9 +154,9 @@ impl Layout {
                 // SAFETY: as in `any_hit`.
                 unsafe {
                     if has_avx512() {
-                        self.closest_wide_avx512(r, ps, n, tmin, best_t, best);
+                        self.closest_wide_avx512(r, (ps, n), tmin, best_t, best);
                     } else {
-                        self.closest_wide_avx2(r, ps, n, tmin, best_t, best);
+                        self.closest_wide_avx2(r, (ps, n), tmin, best_t, best);
                     }
                 }
                 return;
@@ -222,23 +222,16 @@ impl Layout {
     pub(in crate::ray) unsafe fn any_hit_wide_avx512<F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
-        ps: usize,
-        n: usize,
+        (ps, n): (usize, usize),
         range: (f32, f32),
         tested: &mut u64,
         skip: &F,
     ) -> Option<u32> {
-        for k in 0..n.div_ceil(16) {
-            let w = &self.wide[ps + k];
-            let valid = lane_mask::<16>(n, k);
-            *tested += valid.count_ones() as u64;
-            let h = hits16_avx512::<false>(r, &w.v, range.0, range.1);
-            let hit = any_of_hits(r, (&w.v, &w.id, 0), &h, valid, range, skip);
-            if hit.is_some() {
-                return hit;
-            }
-        }
-        None
+        self.any_hit_in_parts::<16>((ps, n), tested, |w, _, m| {
+            // SAFETY: the caller's CPU has AVX-512F.
+            let h = unsafe { hits16_avx512::<false>(r, &w.v, range.0, range.1) };
+            any_of_hits(r, (&w.v, &w.id, 0), &h, m, range, skip)
+        })
     }
 
     /// [`Layout::any_hit`] of a run stored in wide packets, four lanes at a time by
@@ -252,23 +245,37 @@ impl Layout {
     pub(in crate::ray) unsafe fn any_hit_wide_avx2<F: Fn(u32) -> bool>(
         &self,
         r: &RayPre,
-        ps: usize,
-        n: usize,
+        (ps, n): (usize, usize),
         range: (f32, f32),
         tested: &mut u64,
         skip: &F,
+    ) -> Option<u32> {
+        self.any_hit_in_parts::<4>((ps, n), tested, |w, off, m| {
+            // SAFETY: the caller's CPU has AVX2; `off + 4 <= 16`.
+            let h = unsafe { hits4_avx_at::<16, false>(r, &w.v, off, range.0, range.1) };
+            any_of_hits(r, (&w.v, &w.id, off), &h, m, range, skip)
+        })
+    }
+
+    /// The wide packets of the run `(ps, n)` in parts of `P` lanes (16 or 4): `part(packet,
+    /// first lane, lanes to decide)` for each part with lanes in the run, until one returns a
+    /// triangle. Adds the triangles to `*tested`.
+    #[inline(always)]
+    fn any_hit_in_parts<const P: usize>(
+        &self,
+        (ps, n): (usize, usize),
+        tested: &mut u64,
+        part: impl Fn(&Wide, usize, u32) -> Option<u32>,
     ) -> Option<u32> {
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
             let valid = lane_mask::<16>(n, k);
             *tested += valid.count_ones() as u64;
-            for q in 0..4 {
-                let m = valid >> (4 * q) & 0xF;
+            for off in (0..16).step_by(P) {
+                let m = valid >> off & (u32::MAX >> (32 - P));
                 if m != 0 {
-                    let h = hits4_avx_at::<16, false>(r, &w.v, 4 * q, range.0, range.1);
-                    let hit = any_of_hits(r, (&w.v, &w.id, 4 * q), &h, m, range, skip);
-                    if hit.is_some() {
-                        return hit;
+                    if let Some(id) = part(w, off, m) {
+                        return Some(id);
                     }
                 }
             }
@@ -287,8 +294,7 @@ impl Layout {
     pub(in crate::ray) unsafe fn closest_wide_avx512(
         &self,
         r: &RayPre,
-        ps: usize,
-        n: usize,
+        (ps, n): (usize, usize),
         tmin: f32,
         best_t: &mut f32,
         best: &mut Option<(u32, f32, f32)>,
@@ -312,8 +318,7 @@ impl Layout {
     pub(in crate::ray) unsafe fn closest_wide_avx2(
         &self,
         r: &RayPre,
-        ps: usize,
-        n: usize,
+        (ps, n): (usize, usize),
         tmin: f32,
         best_t: &mut f32,
         best: &mut Option<(u32, f32, f32)>,
@@ -321,11 +326,11 @@ impl Layout {
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
             let valid = lane_mask::<16>(n, k);
-            for q in 0..4 {
-                let m = valid >> (4 * q) & 0xF;
+            for off in (0..16).step_by(4) {
+                let m = valid >> off & 0xF;
                 if m != 0 {
-                    let h = hits4_avx_at::<16, true>(r, &w.v, 4 * q, tmin, *best_t);
-                    closest_of_hits(r, (&w.v, &w.id, 4 * q), &h, m, tmin, best_t, best);
+                    let h = hits4_avx_at::<16, true>(r, &w.v, off, tmin, *best_t);
+                    closest_of_hits(r, (&w.v, &w.id, off), &h, m, tmin, best_t, best);
                 }
             }
         }
