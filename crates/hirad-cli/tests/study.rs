@@ -500,7 +500,7 @@ fn ray_boxes_choose_the_traversal_boxes() {
         let mut lines = csv.lines();
         assert_eq!(
             lines.next().unwrap(),
-            "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray"
+            "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray,sah_mrays_per_s"
         );
         lines
             .map(|l| l.split(',').map(String::from).collect())
@@ -521,6 +521,9 @@ fn ray_boxes_choose_the_traversal_boxes() {
         assert_eq!(a[8], b[8]);
         let nodes = |r: &Vec<String>| r[9].parse::<f64>().unwrap();
         assert!(nodes(a) <= nodes(b), "{a:?} {b:?}");
+        // Each unit timed `sah` beside its strategy.
+        let sah_rate = |r: &Vec<String>| r[11].parse::<f64>().unwrap();
+        assert!(sah_rate(a) > 0.0 && sah_rate(b) > 0.0, "{a:?} {b:?}");
     }
     let md = std::fs::read_to_string(c.join("report.md")).unwrap();
     assert!(md.contains("Batch occlusion, cluster boxes"), "{md}");

@@ -134,6 +134,11 @@ pub struct RayRecord {
     pub query_ms: f64,
     /// Segments cast per second, millions.
     pub mrays_per_s: f64,
+    /// The `sah` tree's rate on the same segments, timed in the same unit in turns with this
+    /// strategy (`ray::turns`): the baseline of "vs sah", free of the drift between units and
+    /// of the differences between machines (records written before it: none).
+    #[serde(default)]
+    pub sah_mrays_per_s: Option<f64>,
     /// Segments found occluded.
     pub occluded: usize,
     /// Mean nodes visited per segment.

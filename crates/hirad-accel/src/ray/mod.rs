@@ -15,6 +15,7 @@
 mod layout;
 pub mod sample;
 mod stack;
+pub mod turns;
 pub mod volume;
 pub mod watertight;
 

@@ -939,3 +939,50 @@ fn baseline_and_avx2_traversals_equal_brute_force() {
         }
     }
 }
+
+#[test]
+fn casters_timed_in_turns_count_as_alone() {
+    // Two trees over random triangles, 40,000 segments (three turns of each), two passes with
+    // closest hits: every caster's counts equal its own batch count and brute force, and every
+    // caster was timed.
+    let mut g = hirad_core::rng::SplitMix64::new(3);
+    let mut f = |s: f32| (g.next_f32() - 0.5) * s;
+    let corners: Vec<[Vec3; 3]> = (0..300)
+        .map(|_| {
+            let c = Vec3::new(f(8.0), f(8.0), f(8.0));
+            [
+                c,
+                c + Vec3::new(f(1.0), f(1.0), f(1.0)),
+                c + Vec3::new(f(1.0), f(1.0), f(1.0)),
+            ]
+        })
+        .collect();
+    let s = tri_scene("turns", corners.len(), |i| corners[i]);
+    let segs: Vec<Segment> = (0..40_000)
+        .map(|_| {
+            Segment::between(
+                Vec3::new(f(9.0), f(9.0), f(9.0)),
+                Vec3::new(f(9.0), f(9.0), f(9.0)),
+            )
+        })
+        .collect();
+    let trees: Vec<ClusterTree> = [Strategy::Sah, Strategy::Kdt]
+        .iter()
+        .map(|&st| ClusterTree::build(&s, st, &ClusterConfig::default()))
+        .collect();
+    let casters: Vec<RayCaster> = trees.iter().map(|t| RayCaster::new(&s, t)).collect();
+    let list: Vec<&RayCaster> = casters.iter().collect();
+    let ticks = std::cell::Cell::new(0);
+    let t = turns::time_in_turns(&list, &segs, 2, true, || ticks.set(ticks.get() + 1));
+    let brute = segs
+        .iter()
+        .filter(|q| casters[0].occluded_brute(q.origin, q.dir, q.tmin, q.tmax))
+        .count() as u64;
+    assert!(brute > 1000, "{brute}");
+    assert_eq!(t.batch_occluded, vec![brute; 2]);
+    assert_eq!(t.single_occluded, vec![brute; 2]);
+    assert_eq!(ticks.get(), 2 * 3);
+    for k in 0..2 {
+        assert!(t.batch_s[k] > 0.0 && t.single_s[k] > 0.0 && t.closest_s[k] > 0.0);
+    }
+}

@@ -8,7 +8,7 @@
 use crate::Global;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::Progress;
-use hirad::ray::{sample, Boxes, RayCaster, RayStats};
+use hirad::ray::{sample, turns, Boxes, RayCaster, RayStats};
 use hirad::scene::SceneOptions;
 use serde::Serialize;
 use std::time::Instant;
@@ -107,83 +107,6 @@ struct Report {
     rows: Vec<Row>,
 }
 
-/// Segments each strategy casts in its turn of a timed pass.
-const TURN: usize = 16_384;
-
-/// Segments of a turn cast untimed first (its caster's data back in the caches).
-const WARM: usize = 1_024;
-
-/// Seconds each strategy spent on the timed passes, and its occluded count.
-struct Times {
-    batch: Vec<f64>,
-    single: Vec<f64>,
-    closest: Vec<f64>,
-    occluded: Vec<u64>,
-}
-
-/// Time `repeat` passes of `segs` through every caster: batch occlusion, single queries and
-/// (with `closest`) closest hits. Within a pass the casters take turns every [`TURN`]
-/// segments, in an order rotated at each turn, so that the machine's speed drift weighs on
-/// every strategy alike; each turn starts with [`WARM`] segments cast untimed. Fails when a
-/// strategy's single queries and batch disagree.
-fn time_turns(
-    casters: &[(RayCaster, f64)],
-    segs: &[hirad::ray::Segment],
-    repeat: usize,
-    closest: bool,
-    tick: impl Fn(),
-) -> anyhow::Result<Times> {
-    use rayon::prelude::*;
-    let n = casters.len();
-    let mut t = Times {
-        batch: vec![0.0; n],
-        single: vec![0.0; n],
-        closest: vec![0.0; n],
-        occluded: vec![0; n],
-    };
-    for pass in 0..repeat {
-        let mut batch = vec![0u64; n];
-        let mut single = vec![0u64; n];
-        for (k, c) in segs.chunks(TURN).enumerate() {
-            for j in 0..n {
-                let i = (j + k + pass) % n;
-                let rc = &casters[i].0;
-                // Untimed: bring the caster's upper levels back into the caches the others
-                // used since its last turn.
-                std::hint::black_box(rc.count_occluded(&c[..WARM.min(c.len())]));
-                let t0 = Instant::now();
-                batch[i] += rc.count_occluded(c);
-                t.batch[i] += t0.elapsed().as_secs_f64();
-                let t0 = Instant::now();
-                single[i] += c
-                    .par_iter()
-                    .with_min_len(256)
-                    .filter(|s| rc.occluded(s.origin, s.dir, s.tmin, s.tmax))
-                    .count() as u64;
-                t.single[i] += t0.elapsed().as_secs_f64();
-                if closest {
-                    let t0 = Instant::now();
-                    std::hint::black_box(rc.closest_batch(c));
-                    t.closest[i] += t0.elapsed().as_secs_f64();
-                }
-            }
-            tick();
-        }
-        for i in 0..n {
-            if single[i] != batch[i] {
-                return Err(anyhow::anyhow!(
-                    "{}: single-ray occluded count {} differs from the batch count {}",
-                    casters[i].0.tree.strategy,
-                    single[i],
-                    batch[i]
-                ));
-            }
-        }
-        t.occluded = batch;
-    }
-    Ok(t)
-}
-
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let strategies = Strategy::parse_list(&args.clustering)?;
     if args.pairs == 0 {
@@ -211,7 +134,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let bars = crate::progress::Bars::new(g.quiet || g.json);
     bars.start(
         "raybench",
-        (2 * strategies.len() + repeat * segs.len().div_ceil(TURN)) as u64,
+        (2 * strategies.len() + repeat * segs.len().div_ceil(turns::TURN)) as u64,
     );
     // Every strategy's tree and layout first, all held at once, so that the timed passes can
     // take turns between them.
@@ -232,18 +155,27 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         bars.inc(1);
     }
     bars.message("casting");
-    let times = time_turns(&casters, &segs, repeat, args.closest, || bars.inc(1))?;
+    let list: Vec<&RayCaster> = casters.iter().map(|(rc, _)| rc).collect();
+    let times = turns::time_in_turns(&list, &segs, repeat, args.closest, || bars.inc(1));
+    for (k, st) in strategies.iter().enumerate() {
+        let (b, s) = (times.batch_occluded[k], times.single_occluded[k]);
+        if b != s {
+            return Err(anyhow::anyhow!(
+                "{st}: single-ray occluded count {s} differs from the batch count {b}"
+            ));
+        }
+    }
     let mut rows = Vec::new();
     let mut brute_occluded = None;
     for (k, ((rc, layout_ms), (tree, build_ms))) in casters.iter().zip(&trees).enumerate() {
         let st = strategies[k];
         let ms = |s: f64| s * 1e3 / repeat as f64;
-        let (query_ms, single_ms) = (ms(times.batch[k]), ms(times.single[k]));
-        let occluded = times.occluded[k];
+        let (query_ms, single_ms) = (ms(times.batch_s[k]), ms(times.single_s[k]));
+        let occluded = times.batch_occluded[k];
         let (occ2, stats): (u64, RayStats) = rc.occluded_batch_stats(&segs);
         debug_assert_eq!(occ2, occluded);
         let closest = if args.closest {
-            let q = ms(times.closest[k]);
+            let q = ms(times.closest_s[k]);
             let (hits, cs) = rc.closest_batch_stats(&segs);
             Some(ClosestRow {
                 query_ms: q,

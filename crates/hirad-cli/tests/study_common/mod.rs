@@ -12,6 +12,7 @@ pub fn results_without_timings(dir: &Path) -> serde_json::Value {
             "build_ms",
             "query_ms",
             "mrays_per_s",
+            "sah_mrays_per_s",
             "solve_s",
             "seconds",
             "volume_s",

@@ -187,10 +187,10 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
     )?);
     files.push(write_csv(
         &out.join("raybench.csv"),
-        "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray",
+        "scene,strategy,pairs,seed,boxes,build_ms,query_ms,mrays_per_s,occluded,nodes_per_ray,tris_per_ray,sah_mrays_per_s",
         d.rays.iter().map(|r| {
             format!(
-                "{scene},{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3}",
+                "{scene},{},{},{},{},{:.4},{:.4},{:.6},{},{:.3},{:.3},{}",
                 r.strategy,
                 r.pairs,
                 r.seed,
@@ -200,7 +200,8 @@ pub fn write_outputs(out: &std::path::Path, d: &mut ReportData) -> Result<Vec<Pa
                 r.mrays_per_s,
                 r.occluded,
                 r.nodes_per_ray,
-                r.tris_per_ray
+                r.tris_per_ray,
+                r.sah_mrays_per_s.map(|x| format!("{x:.6}")).unwrap_or_default()
             )
         }),
     )?);

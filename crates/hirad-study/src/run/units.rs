@@ -6,7 +6,7 @@ use super::Study;
 use crate::records::{ClusterRecord, NoiseRecord, RayRecord, ReferenceRecord, SolveRecord};
 use crate::report::VolumeRow;
 use hirad_accel::cluster::{stats::ClusterStats, ClusterTree, Strategy};
-use hirad_accel::ray::{sample::sample_segments, RayCaster};
+use hirad_accel::ray::{sample::sample_segments, turns, RayCaster};
 use hirad_core::{Error, Result};
 use hirad_radiosity::{self as radiosity, SolverConfig, VisibilityMode};
 use hirad_render::{self as render, CameraView, Image, RasterOptions};
@@ -120,9 +120,24 @@ impl Study<'_> {
         let tree = self.tree(s);
         let caster = RayCaster::with_boxes(&self.scene, &tree, self.cfg.ray_boxes);
         let build_ms = ms(t);
-        let t = Instant::now();
-        let occluded = caster.count_occluded(&segs);
-        let query_ms = ms(t);
+        // `sah` is timed beside the strategy, in turns, as the baseline of its rate.
+        let sah_tree = (s != Strategy::Sah).then(|| self.tree(Strategy::Sah));
+        let sah = sah_tree
+            .as_ref()
+            .map(|t| RayCaster::with_boxes(&self.scene, t, self.cfg.ray_boxes));
+        let list: Vec<&RayCaster> = std::iter::once(&caster).chain(sah.as_ref()).collect();
+        let times = turns::time_in_turns(&list, &segs, 1, false, || ());
+        let occluded = times.batch_occluded[0];
+        if times.single_occluded != times.batch_occluded
+            || times.batch_occluded.iter().any(|&o| o != occluded)
+        {
+            return Err(Error::Config(format!(
+                "{s}: occluded counts differ between queries or from sah's: batch {:?}, single {:?}",
+                times.batch_occluded, times.single_occluded
+            )));
+        }
+        let rate = |secs: f64| segs.len() as f64 / (secs * 1e6).max(1e-12);
+        let query_ms = times.batch_s[0] * 1e3;
         let (_, stats) = caster.occluded_batch_stats(&segs);
         Ok(RayRecord {
             meta: self.meta.clone(),
@@ -132,7 +147,8 @@ impl Study<'_> {
             boxes: self.cfg.ray_boxes,
             build_ms,
             query_ms,
-            mrays_per_s: segs.len() as f64 / (query_ms * 1e3).max(1e-12),
+            mrays_per_s: rate(times.batch_s[0]),
+            sah_mrays_per_s: Some(rate(*times.batch_s.last().expect("one caster at least"))),
             occluded: occluded as usize,
             nodes_per_ray: stats.nodes_per_ray(),
             tris_per_ray: stats.tris_per_ray(),
