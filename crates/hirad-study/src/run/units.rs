@@ -13,6 +13,9 @@ use hirad_render::{self as render, CameraView, Image, RasterOptions};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Timed passes of a ray-casting unit over its segments (as `raybench`'s default).
+const RAY_PASSES: usize = 3;
+
 /// PNG exposure (stops) that maps the image's white (99th-percentile luminance, as the CIELUV
 /// metric takes it) to 1, so that indoor scenes and sunlit ones are both readable. Errors are
 /// always computed on the linear images, never on the PNGs.
@@ -126,7 +129,7 @@ impl Study<'_> {
             .as_ref()
             .map(|t| RayCaster::with_boxes(&self.scene, t, self.cfg.ray_boxes));
         let list: Vec<&RayCaster> = std::iter::once(&caster).chain(sah.as_ref()).collect();
-        let times = turns::time_in_turns(&list, &segs, 1, false, || ());
+        let times = turns::time_in_turns(&list, &segs, RAY_PASSES, false, || ());
         let occluded = times.batch_occluded[0];
         if times.single_occluded != times.batch_occluded
             || times.batch_occluded.iter().any(|&o| o != occluded)
@@ -136,8 +139,8 @@ impl Study<'_> {
                 times.batch_occluded, times.single_occluded
             )));
         }
-        let rate = |secs: f64| segs.len() as f64 / (secs * 1e6).max(1e-12);
-        let query_ms = times.batch_s[0] * 1e3;
+        let rate = |secs: f64| (RAY_PASSES * segs.len()) as f64 / (secs * 1e6).max(1e-12);
+        let query_ms = times.batch_s[0] * 1e3 / RAY_PASSES as f64;
         let (_, stats) = caster.occluded_batch_stats(&segs);
         Ok(RayRecord {
             meta: self.meta.clone(),
