@@ -866,17 +866,21 @@ fn validate_finds_broken_references() {
     }
 }
 
-#[test]
-fn baseline_and_avx2_traversals_equal_brute_force() {
-    // The occlusion traversals (single ray and batch) compiled for the x86_64 baseline
-    // (scalar box tests) and for AVX2 answer as the brute-force loop does, for every
-    // strategy, on random triangles of mixed sizes and random segments.
-    let mut g = hirad_core::rng::SplitMix64::new(21);
+/// `n` random triangles (corners within `size(i)` of a centre in [-4, 4]³) and then `m` random
+/// segments (ends in [-4.5, 4.5]³), from one SplitMix64 stream seeded with `seed`.
+fn random_scene(
+    name: &str,
+    seed: u64,
+    n: usize,
+    size: impl Fn(usize) -> f32,
+    m: usize,
+) -> (Scene, Vec<Segment>) {
+    let mut g = hirad_core::rng::SplitMix64::new(seed);
     let mut f = |s: f32| (g.next_f32() - 0.5) * s;
-    let corners: Vec<[Vec3; 3]> = (0..600)
+    let corners: Vec<[Vec3; 3]> = (0..n)
         .map(|i| {
             let c = Vec3::new(f(8.0), f(8.0), f(8.0));
-            let s = if i % 7 == 0 { 3.0 } else { 0.6 };
+            let s = size(i);
             [
                 c,
                 c + Vec3::new(f(s), f(s), f(s)),
@@ -884,8 +888,8 @@ fn baseline_and_avx2_traversals_equal_brute_force() {
             ]
         })
         .collect();
-    let s = tri_scene("random", corners.len(), |i| corners[i]);
-    let segs: Vec<Segment> = (0..3000)
+    let scene = tri_scene(name, corners.len(), |i| corners[i]);
+    let segs = (0..m)
         .map(|_| {
             Segment::between(
                 Vec3::new(f(9.0), f(9.0), f(9.0)),
@@ -893,6 +897,21 @@ fn baseline_and_avx2_traversals_equal_brute_force() {
             )
         })
         .collect();
+    (scene, segs)
+}
+
+#[test]
+fn baseline_and_avx2_traversals_equal_brute_force() {
+    // The occlusion traversals (single ray and batch) compiled for the x86_64 baseline
+    // (scalar box tests) and for AVX2 answer as the brute-force loop does, for every
+    // strategy, on random triangles of mixed sizes and random segments.
+    let (s, segs) = random_scene(
+        "random",
+        21,
+        600,
+        |i| if i % 7 == 0 { 3.0 } else { 0.6 },
+        3000,
+    );
     for st in Strategy::ALL {
         let t = ClusterTree::build(&s, st, &ClusterConfig::default());
         let rc = RayCaster::new(&s, &t);
@@ -945,27 +964,7 @@ fn casters_timed_in_turns_count_as_alone() {
     // Two trees over random triangles, 40,000 segments (three turns of each), two passes with
     // closest hits: every caster's counts equal its own batch count and brute force, and every
     // caster was timed.
-    let mut g = hirad_core::rng::SplitMix64::new(3);
-    let mut f = |s: f32| (g.next_f32() - 0.5) * s;
-    let corners: Vec<[Vec3; 3]> = (0..300)
-        .map(|_| {
-            let c = Vec3::new(f(8.0), f(8.0), f(8.0));
-            [
-                c,
-                c + Vec3::new(f(1.0), f(1.0), f(1.0)),
-                c + Vec3::new(f(1.0), f(1.0), f(1.0)),
-            ]
-        })
-        .collect();
-    let s = tri_scene("turns", corners.len(), |i| corners[i]);
-    let segs: Vec<Segment> = (0..40_000)
-        .map(|_| {
-            Segment::between(
-                Vec3::new(f(9.0), f(9.0), f(9.0)),
-                Vec3::new(f(9.0), f(9.0), f(9.0)),
-            )
-        })
-        .collect();
+    let (s, segs) = random_scene("turns", 3, 300, |_| 1.0, 40_000);
     let trees: Vec<ClusterTree> = [Strategy::Sah, Strategy::Kdt]
         .iter()
         .map(|&st| ClusterTree::build(&s, st, &ClusterConfig::default()))
