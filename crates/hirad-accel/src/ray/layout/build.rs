@@ -5,7 +5,7 @@ use super::encode::{
 };
 use super::faces::{face_bits, flat_bits};
 use super::packets::{put, Packet, Wide, WIDE_MIN};
-use super::run_tree::{eager_run, run_box, Piece, RunTree, CHUNK_MAX};
+use super::run_tree::{eager_run, run_box, top_fanout, Piece, RunTree, CHUNK_MAX};
 use super::{Boxes, Layout};
 use crate::cluster::ClusterTree;
 use hirad_core::geom::{triangle_area_f64, Aabb};
@@ -103,7 +103,7 @@ impl Layout {
                     let c = kids(id as u32).count();
                     if ids.len() > CHUNK_MAX && (c > 0 || ids.len() > LEAF_MAX_TRIS) {
                         let mut split = ids.clone();
-                        let rt = RunTree::new(scene, &mut split, 4 - c % 4);
+                        let rt = RunTree::new(scene, &mut split, top_fanout(c));
                         let sa = run_bound[id].surface_area() as f64;
                         if rt.pays(ids.len(), sa, c % 4 != 0 && !eager[id]) {
                             *ids = split;

@@ -43,9 +43,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Boxes {
-    /// As [`Boxes::Nodes`], and a node's own run longer than 16 triangles is split into
+    /// As [`Boxes::Nodes`], and a node's own run longer than 4 triangles is split into
     /// pieces of nearby triangles behind boxes of their own (`RunTree` in `ray/layout/run_tree.rs`: cut
-    /// by the surface area heuristic, down to chunks of at most 16), where a cost model says
+    /// by the surface area heuristic, down to chunks of at most 4), where a cost model says
     /// the boxes pay for their box tests (`STEP_COST`). The pieces take the lanes the whole
     /// run would have taken, so every triangle is still reached only behind its node's box;
     /// a ray tests only the pieces whose boxes it hits (the many surfaces a `kdt` node keeps

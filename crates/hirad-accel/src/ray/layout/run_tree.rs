@@ -18,8 +18,11 @@ use hirad_scene::Scene;
 pub(super) const EAGER_HITS_PER_TEST: f64 = 0.003;
 
 /// With tight boxes, a node's own run longer than this is split into pieces of nearby
-/// triangles ([`RunTree`]); pieces of at most this many are tested like a leaf.
-pub(in crate::ray) const CHUNK_MAX: usize = 16;
+/// triangles ([`RunTree`]) where the cost model says so; pieces of at most this many (one
+/// packet) are tested like a leaf. Pieces of up to sixteen are split further where their
+/// parts pay for their box tests: a piece of a few large triangles (walls and floors that
+/// cross a k-d plane) has a box as large as the run's, its parts flat boxes most segments miss.
+pub(in crate::ray) const CHUNK_MAX: usize = 4;
 
 /// A piece of a node's own run: a range of the (reordered) run, a chunk tested like a leaf
 /// (at most [`LEAF_MAX_TRIS`] triangles) or a group of up to four smaller pieces.
@@ -37,8 +40,8 @@ pub(super) struct Piece {
 }
 
 /// The own triangles of a node split for traversal with tight boxes: the pieces that take the
-/// free lanes of the node's last group and, behind them, groups of up to four pieces each,
-/// down to chunks of at most [`CHUNK_MAX`] nearby triangles (or up to [`LEAF_MAX_TRIS`]
+/// free lanes of the node ([`top_fanout`]) and, behind them, groups of up to four pieces
+/// each, down to chunks of at most [`CHUNK_MAX`] nearby triangles (or up to [`LEAF_MAX_TRIS`]
 /// where splitting further would not pay for the steps). Only the boxes change: every
 /// triangle is still reached through (and only through) the node it is attached to.
 #[derive(Clone, Debug, Default)]
@@ -114,6 +117,17 @@ impl RunTree {
                 }
             })
             .collect()
+    }
+}
+
+/// How many pieces of a node's own run take lanes beside its `children`: the free lanes of
+/// its last group of four, or when the children fill whole eight-lane nodes, a node of eight
+/// pieces (the lanes of a partly full eight-lane node are left for inner children pulled up).
+pub(super) fn top_fanout(children: usize) -> usize {
+    if children.is_multiple_of(8) {
+        8
+    } else {
+        4 - children % 4
     }
 }
 
