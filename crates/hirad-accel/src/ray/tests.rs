@@ -282,6 +282,46 @@ fn a_sparse_run_is_visited_in_distance_order() {
 }
 
 #[test]
+fn a_node_with_eight_children_splits_its_run_into_eight_pieces() {
+    // A root holding 64 triangles in a row and eight leaf children (an octree node): its eight
+    // children fill one eight-lane node, and its run takes a second one of eight pieces (four
+    // when pieces only fill a group of four): a ray onto one of them tests a piece of eight
+    // (sixteen with four pieces; splitting a piece of a row of eight does not pay).
+    let s = row_of_triangles("row", 72);
+    let mut b = BuildTree::default();
+    let kids: Vec<u32> = (64..72)
+        .map(|i| {
+            b.push(BuildNode {
+                bbox: s.tri_bbox(i),
+                children: vec![],
+                surfaces: vec![i as u32],
+            })
+        })
+        .collect();
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: (0..64).collect(),
+    });
+    let t = ClusterTree::from_build(b, 72, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let mut lanes = 0;
+    let mut m = rc.nodes.root.unwrap();
+    while m != NONE {
+        let n = &rc.nodes.nodes[m as usize];
+        lanes += n.lanes as usize;
+        m = n.more;
+    }
+    assert_eq!(lanes, 8 + 8);
+    for i in [5, 30, 63, 64, 71] {
+        let o = Vec3::new(2.0 * i as f32 + 0.25, 0.25, 1.0);
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        assert!(st.tris <= 8, "{i}: {st:?}");
+    }
+}
+
+#[test]
 fn a_long_run_is_split_into_pieces() {
     // The root of `a_sparse_run_is_visited_in_distance_order` (99 triangles in a row and a
     // leaf child): with tight boxes its run is split into pieces that fill the three free lanes
