@@ -78,19 +78,23 @@ fn stream_down(rc: &RayCaster, origins: impl Iterator<Item = Vec3>) -> Vec<bool>
     out
 }
 
+/// One leaf node of `b` per triangle of `tris`.
+fn leaves(b: &mut BuildTree, s: &Scene, tris: std::ops::Range<usize>) -> Vec<u32> {
+    tris.map(|i| {
+        b.push(BuildNode {
+            bbox: s.tri_bbox(i),
+            children: vec![],
+            surfaces: vec![i as u32],
+        })
+    })
+    .collect()
+}
+
 /// A root whose children are one leaf per triangle.
 fn one_leaf_per_triangle(s: &Scene) -> ClusterTree {
     let n = s.num_triangles();
     let mut b = BuildTree::default();
-    let kids: Vec<u32> = (0..n)
-        .map(|i| {
-            b.push(BuildNode {
-                bbox: s.tri_bbox(i),
-                children: vec![],
-                surfaces: vec![i as u32],
-            })
-        })
-        .collect();
+    let kids = leaves(&mut b, s, 0..n);
     b.root = b.push(BuildNode {
         bbox: s.bbox,
         children: kids,
@@ -289,15 +293,7 @@ fn a_node_with_eight_children_splits_its_run_into_eight_pieces() {
     // (sixteen with four pieces; splitting a piece of a row of eight does not pay).
     let s = row_of_triangles("row", 72);
     let mut b = BuildTree::default();
-    let kids: Vec<u32> = (64..72)
-        .map(|i| {
-            b.push(BuildNode {
-                bbox: s.tri_bbox(i),
-                children: vec![],
-                surfaces: vec![i as u32],
-            })
-        })
-        .collect();
+    let kids = leaves(&mut b, &s, 64..72);
     b.root = b.push(BuildNode {
         bbox: s.bbox,
         children: kids,
