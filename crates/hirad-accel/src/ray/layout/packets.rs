@@ -227,7 +227,7 @@ impl Layout {
         tested: &mut u64,
         skip: &F,
     ) -> Option<u32> {
-        self.any_hit_in_parts::<16>((ps, n), tested, |w, _, m| {
+        self.in_parts::<16>((ps, n), tested, |w, _, m| {
             // SAFETY: the caller's CPU has AVX-512F.
             let h = unsafe { hits16_avx512::<false>(r, &w.v, range.0, range.1) };
             any_of_hits(r, (&w.v, &w.id, 0), &h, m, range, skip)
@@ -250,7 +250,7 @@ impl Layout {
         tested: &mut u64,
         skip: &F,
     ) -> Option<u32> {
-        self.any_hit_in_parts::<4>((ps, n), tested, |w, off, m| {
+        self.in_parts::<4>((ps, n), tested, |w, off, m| {
             // SAFETY: the caller's CPU has AVX2; `off + 4 <= 16`.
             let h = unsafe { hits4_avx_at::<16, false>(r, &w.v, off, range.0, range.1) };
             any_of_hits(r, (&w.v, &w.id, off), &h, m, range, skip)
@@ -259,13 +259,13 @@ impl Layout {
 
     /// The wide packets of the run `(ps, n)` in parts of `P` lanes (16 or 4): `part(packet,
     /// first lane, lanes to decide)` for each part with lanes in the run, until one returns a
-    /// triangle. Adds the triangles to `*tested`.
+    /// triangle (occlusion; closest hits return none). Adds the triangles to `*tested`.
     #[inline(always)]
-    fn any_hit_in_parts<const P: usize>(
+    fn in_parts<const P: usize>(
         &self,
         (ps, n): (usize, usize),
         tested: &mut u64,
-        part: impl Fn(&Wide, usize, u32) -> Option<u32>,
+        mut part: impl FnMut(&Wide, usize, u32) -> Option<u32>,
     ) -> Option<u32> {
         for k in 0..n.div_ceil(16) {
             let w = &self.wide[ps + k];
@@ -299,12 +299,12 @@ impl Layout {
         best_t: &mut f32,
         best: &mut Option<(u32, f32, f32)>,
     ) {
-        for k in 0..n.div_ceil(16) {
-            let w = &self.wide[ps + k];
-            let h = hits16_avx512::<true>(r, &w.v, tmin, *best_t);
-            let m = lane_mask::<16>(n, k);
+        self.in_parts::<16>((ps, n), &mut 0, |w, _, m| {
+            // SAFETY: the caller's CPU has AVX-512F.
+            let h = unsafe { hits16_avx512::<true>(r, &w.v, tmin, *best_t) };
             closest_of_hits(r, (&w.v, &w.id, 0), &h, m, tmin, best_t, best);
-        }
+            None
+        });
     }
 
     /// [`Layout::closest_hit`] of a run stored in wide packets, four lanes at a time by
@@ -323,17 +323,12 @@ impl Layout {
         best_t: &mut f32,
         best: &mut Option<(u32, f32, f32)>,
     ) {
-        for k in 0..n.div_ceil(16) {
-            let w = &self.wide[ps + k];
-            let valid = lane_mask::<16>(n, k);
-            for off in (0..16).step_by(4) {
-                let m = valid >> off & 0xF;
-                if m != 0 {
-                    let h = hits4_avx_at::<16, true>(r, &w.v, off, tmin, *best_t);
-                    closest_of_hits(r, (&w.v, &w.id, off), &h, m, tmin, best_t, best);
-                }
-            }
-        }
+        self.in_parts::<4>((ps, n), &mut 0, |w, off, m| {
+            // SAFETY: the caller's CPU has AVX2; `off + 4 <= 16`.
+            let h = unsafe { hits4_avx_at::<16, true>(r, &w.v, off, tmin, *best_t) };
+            closest_of_hits(r, (&w.v, &w.id, off), &h, m, tmin, best_t, best);
+            None
+        });
     }
 }
 
