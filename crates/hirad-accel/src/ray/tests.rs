@@ -318,6 +318,33 @@ fn a_node_with_eight_children_splits_its_run_into_eight_pieces() {
 }
 
 #[test]
+fn a_run_beside_four_children_gets_a_lane_of_its_own() {
+    // A root holding three triangles and four leaf children: the children fill one group of
+    // four, and the run takes a lane in a second one (the root is one eight-lane node either
+    // way), so a ray onto a child tests only that child's triangle. Without the lane, the run
+    // is tested at every visit of the root: four triangles.
+    let s = row_of_triangles("row", 7);
+    let mut b = BuildTree::default();
+    let kids = leaves(&mut b, &s, 3..7);
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: (0..3).collect(),
+    });
+    let t = ClusterTree::from_build(b, 7, Strategy::Sah, ClusterConfig::default());
+    let rc = RayCaster::new(&s, &t);
+    let root = &rc.nodes.nodes[rc.nodes.root.unwrap() as usize];
+    assert_eq!((root.lanes, root.num_tris, root.more), (5, 0, NONE));
+    for i in 0..7 {
+        let o = Vec3::new(2.0 * i as f32 + 0.25, 0.25, 1.0);
+        let mut st = RayStats::default();
+        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        let most = if i < 3 { 3 } else { 1 };
+        assert!(st.tris <= most, "{i}: {st:?}");
+    }
+}
+
+#[test]
 fn a_long_run_is_split_into_pieces() {
     // The root of `a_sparse_run_is_visited_in_distance_order` (99 triangles in a row and a
     // leaf child): with tight boxes its run is split into pieces that fill the three free lanes

@@ -5,7 +5,7 @@ use super::encode::{
 };
 use super::faces::{face_bits, flat_bits};
 use super::packets::{put, Packet, Wide, WIDE_MIN};
-use super::run_tree::{eager_run, run_box, top_fanout, Piece, RunTree, CHUNK_MAX};
+use super::run_tree::{eager_run, run_box, run_lane, top_fanout, Piece, RunTree, CHUNK_MAX};
 use super::{Boxes, Layout};
 use crate::cluster::ClusterTree;
 use hirad_core::geom::{triangle_area_f64, Aabb};
@@ -105,7 +105,7 @@ impl Layout {
                         let mut split = ids.clone();
                         let rt = RunTree::new(scene, &mut split, top_fanout(c));
                         let sa = run_bound[id].surface_area() as f64;
-                        if rt.pays(ids.len(), sa, c % 4 != 0 && !eager[id]) {
+                        if rt.pays(ids.len(), sa, run_lane(c) && !eager[id]) {
                             *ids = split;
                             *run = Some(rt);
                         }
@@ -209,7 +209,8 @@ impl Layout {
                 refs[i] = leaf_ref(start, t);
             } else {
                 refs[i] = ng as u32;
-                ng += c.div_ceil(4).max(1);
+                let lane = boxes != Boxes::Cluster && t > 0 && run_lane(c);
+                ng += (c + usize::from(lane)).div_ceil(4).max(1);
             }
         }
         // Pass 2: fill in.
@@ -286,14 +287,12 @@ impl Layout {
                 if let Some(rt) = rt {
                     fill_subs(&mut groups, &mut faces, scene, ids, rt, sub_pos[i]);
                 }
-                let num_groups = lanes.div_ceil(4).max(1);
                 let nt = if runs[i].is_some() { 0 } else { ids.len() };
-                // The run gets a lane of its own when the last group has one free (a node
-                // without children has no box to spare: its run is its box).
-                let run_lane = boxes != Boxes::Cluster
-                    && nt > 0
-                    && !k.len().is_multiple_of(4)
-                    && ng < RUN as usize;
+                // The run gets a lane of its own when the node's eight-lane node has one free
+                // ([`run_lane`]; in a group of its own when the children fill theirs).
+                let run_lane =
+                    boxes != Boxes::Cluster && nt > 0 && run_lane(k.len()) && ng < RUN as usize;
+                let num_groups = (lanes + usize::from(run_lane)).div_ceil(4).max(1);
                 let at = if run_lane { g0 + num_groups - 1 } else { g0 };
                 let g = &mut groups[at];
                 g.tri_start = tri_pos[i] as u32;
@@ -346,9 +345,8 @@ enum Lane {
 /// has triangles of its own, a lane holding them (at most [`LEAF_MAX_TRIS`]) or, when they
 /// were split into pieces, the lanes of its top pieces. Nodes passed through and nodes whose
 /// run is split into pieces keep their children. The same triangles, each behind the box of
-/// its node's run or piece, but for a node whose lanes fill its last group: its own run is
-/// tested whenever it is visited (keeping a lane free for it instead was no faster on `soup`,
-/// `docs/perf-log.md` 2026-12-05 (20)).
+/// its node's run or piece, but for a node whose children fill its eight-lane nodes: its own
+/// run is tested whenever it is visited ([`run_lane`]).
 fn collapse(
     order: &[u32],
     kids: &[Vec<u32>],

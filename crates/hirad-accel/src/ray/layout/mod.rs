@@ -60,7 +60,7 @@ pub enum Boxes {
     Tight,
     /// Every node's box shrunk to what lies below it (the union of its own triangles' boxes
     /// and its children's boxes), and the triangles attached to an inner node bounded by a
-    /// box of their own in a free lane of the node's last group, so that they are tested
+    /// box of their own in a free lane of the node's eight-lane node, so that they are tested
     /// only when the ray hits that box. Same nodes, children and triangles as the tree: only
     /// the boxes are tighter, and a node without triangles and with one child (the empty half
     /// of a `kdt`/`obt` cell), whose tight box is its child's, is passed through. Differs from
@@ -101,8 +101,8 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 ///
 /// With tight boxes ([`Boxes::Tight`], [`Boxes::Nodes`]) every box is tight around what lies
 /// below its node, whatever box the strategy gave it (`kdt`/`obt` nodes keep their k-d cells,
-/// mostly empty space); the triangles of an inner node whose last group has a free lane get a
-/// box of their own in that lane, so that the node's one SIMD test decides them with its
+/// mostly empty space); the triangles of an inner node whose eight-lane node has a free lane
+/// get a box of their own in that lane, so that the node's one SIMD test decides them with its
 /// children; a node without triangles of its own and with a single child, whose box is its
 /// child's, is passed through (its parent's lane refers to the child). A run longer than
 /// `CHUNK_MAX` is split into pieces behind boxes of their own (`RunTree`) when the cost model

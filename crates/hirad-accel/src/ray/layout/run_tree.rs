@@ -131,6 +131,14 @@ pub(super) fn top_fanout(children: usize) -> usize {
     }
 }
 
+/// Whether a node's own run beside its `children` lanes gets a lane of its own, so that it is
+/// tested only when a ray hits its box: when their eight-lane node has one free (a second
+/// group of four costs nothing more there). A node without children has no box to spare: its
+/// run is its box.
+pub(super) fn run_lane(children: usize) -> bool {
+    !children.is_multiple_of(8)
+}
+
 /// Cost of visiting a piece of a split run (a step of the traversal and its box test), in
 /// sixteen-wide packet tests ([`test_cost`]). Set by `raybench` measurement
 /// (`docs/perf-log.md`).
