@@ -20,8 +20,9 @@ use super::topdown::{self, Item, Out, PAR_MIN};
 use super::{BuildNode, BuildTree, ClusterConfig, Prims};
 use hirad_core::geom::Aabb;
 
-/// Number of bins per axis.
-pub const BINS: usize = 32;
+/// Number of bins per axis: many, so that the binned split comes close to the exact sweep's
+/// (`docs/perf-log.md` 2026-12-07 (55)).
+pub const BINS: usize = 256;
 
 /// Build the tree.
 pub fn build(prims: &Prims, cfg: &ClusterConfig) -> BuildTree {
