@@ -285,21 +285,36 @@ fn a_sparse_run_is_visited_in_distance_order() {
     assert_eq!(out, [true, false]);
 }
 
+/// A row of `n` triangles whose root holds the first `run` and has a leaf child for each of
+/// the others.
+fn root_run_and_leaves(n: usize, run: usize) -> (Scene, ClusterTree) {
+    let s = row_of_triangles("row", n);
+    let mut b = BuildTree::default();
+    let kids = leaves(&mut b, &s, run..n);
+    b.root = b.push(BuildNode {
+        bbox: s.bbox,
+        children: kids,
+        surfaces: (0..run as u32).collect(),
+    });
+    let t = ClusterTree::from_build(b, n, Strategy::Sah, ClusterConfig::default());
+    (s, t)
+}
+
+/// The counts of a segment straight down onto triangle `i` of a row, which it hits.
+fn down_onto(rc: &RayCaster, i: usize) -> RayStats {
+    let o = Vec3::new(2.0 * i as f32 + 0.25, 0.25, 1.0);
+    let mut st = RayStats::default();
+    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    st
+}
+
 #[test]
 fn a_node_with_eight_children_splits_its_run_into_eight_pieces() {
     // A root holding 64 triangles in a row and eight leaf children (an octree node): its eight
     // children fill one eight-lane node, and its run takes a second one of eight pieces (four
     // when pieces only fill a group of four): a ray onto one of them tests a piece of eight
     // (sixteen with four pieces; splitting a piece of a row of eight does not pay).
-    let s = row_of_triangles("row", 72);
-    let mut b = BuildTree::default();
-    let kids = leaves(&mut b, &s, 64..72);
-    b.root = b.push(BuildNode {
-        bbox: s.bbox,
-        children: kids,
-        surfaces: (0..64).collect(),
-    });
-    let t = ClusterTree::from_build(b, 72, Strategy::Sah, ClusterConfig::default());
+    let (s, t) = root_run_and_leaves(72, 64);
     let rc = RayCaster::new(&s, &t);
     let mut lanes = 0;
     let mut m = rc.nodes.root.unwrap();
@@ -310,9 +325,7 @@ fn a_node_with_eight_children_splits_its_run_into_eight_pieces() {
     }
     assert_eq!(lanes, 8 + 8);
     for i in [5, 30, 63, 64, 71] {
-        let o = Vec3::new(2.0 * i as f32 + 0.25, 0.25, 1.0);
-        let mut st = RayStats::default();
-        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        let st = down_onto(&rc, i);
         assert!(st.tris <= 8, "{i}: {st:?}");
     }
 }
@@ -323,22 +336,12 @@ fn a_run_beside_four_children_gets_a_lane_of_its_own() {
     // four, and the run takes a lane in a second one (the root is one eight-lane node either
     // way), so a ray onto a child tests only that child's triangle. Without the lane, the run
     // is tested at every visit of the root: four triangles.
-    let s = row_of_triangles("row", 7);
-    let mut b = BuildTree::default();
-    let kids = leaves(&mut b, &s, 3..7);
-    b.root = b.push(BuildNode {
-        bbox: s.bbox,
-        children: kids,
-        surfaces: (0..3).collect(),
-    });
-    let t = ClusterTree::from_build(b, 7, Strategy::Sah, ClusterConfig::default());
+    let (s, t) = root_run_and_leaves(7, 3);
     let rc = RayCaster::new(&s, &t);
     let root = &rc.nodes.nodes[rc.nodes.root.unwrap() as usize];
     assert_eq!((root.lanes, root.num_tris, root.more), (5, 0, NONE));
     for i in 0..7 {
-        let o = Vec3::new(2.0 * i as f32 + 0.25, 0.25, 1.0);
-        let mut st = RayStats::default();
-        assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+        let st = down_onto(&rc, i);
         let most = if i < 3 { 3 } else { 1 };
         assert!(st.tris <= most, "{i}: {st:?}");
     }
