@@ -266,15 +266,11 @@ fn a_sparse_run_is_visited_in_distance_order() {
     let g = &lay.groups[0];
     assert_eq!((g.run, g.eager, g.child[1]), (0b10, 0, layout::RUN));
     // Down onto the leaf's triangle: the leaf is visited, the run's box (x ≤ 197) is missed.
-    let o = Vec3::new(2.0 * 99.0 + 0.25, 0.25, 1.0);
-    let mut st = RayStats::default();
-    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    let st = down_onto(&rc, 99);
     assert_eq!((st.nodes, st.tris), (2, 1));
     // Down onto triangle 50 of the run: the run is visited and tested up to the sixteen-wide
     // packet holding triangle 50 (the fourth: 64 triangles).
-    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
-    let mut st = RayStats::default();
-    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    let st = down_onto(&rc, 50);
     assert_eq!((st.nodes, st.tris), (1, 64));
     let out = stream_down(
         &rc,
@@ -390,9 +386,7 @@ fn a_long_run_is_split_into_pieces() {
     // chunk holding triangle 50 is tested: a packet of four, as the piece of sixteen around it
     // is split where its parts pay for their boxes (64 triangles with the run whole, 12 when
     // pieces stopped at sixteen).
-    let o = Vec3::new(2.0 * 50.0 + 0.25, 0.25, 1.0);
-    let mut st = RayStats::default();
-    assert!(rc.occluded_stats(o, -Vec3::Z, 0.0, 2.0, &mut st));
+    let st = down_onto(&rc, 50);
     assert!(st.nodes == 1 && st.tris <= 4, "{st:?}");
     // Every triangle is found, by closest hit, single occlusion and the stream; the gaps
     // between them are empty.
