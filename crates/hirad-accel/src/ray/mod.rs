@@ -10,9 +10,11 @@
 //! Submodules: [`sample`] draws the random segments of the paper's ray-casting test exactly as
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
 //! through the same tree; [`watertight`] is the triangle test; `layout` stores the tree for
-//! traversal; `stack` is the traversal stack.
+//! traversal (its nodes and triangles on huge pages where the kernel gives them, `pages`);
+//! `stack` is the traversal stack.
 
 mod layout;
+mod pages;
 pub mod sample;
 mod stack;
 pub mod turns;

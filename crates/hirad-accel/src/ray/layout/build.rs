@@ -221,14 +221,14 @@ impl Layout {
             id: [u32::MAX; 4],
         };
         let [npk, nw] = np;
-        let mut packets = vec![empty; npk];
-        let mut wide = vec![
+        let mut packets = super::super::pages::filled(npk, empty);
+        let mut wide = super::super::pages::filled(
+            nw,
             Wide {
                 v: [[0.0; 16]; 9],
                 id: [u32::MAX; 16],
-            };
-            nw
-        ];
+            },
+        );
         // The reference a lane holding node `i` gets: its own, or that of the first node below
         // it that a ray does not pass through for free (children first).
         let mut link = refs.clone();

@@ -101,7 +101,7 @@ impl Nodes8 {
             order.push((r as usize, lanes));
         }
         let mut out = Nodes8 {
-            nodes: Vec::with_capacity(count),
+            nodes: super::super::pages::with_capacity(count),
             runs: Vec::new(),
             root: None,
         };
