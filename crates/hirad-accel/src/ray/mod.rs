@@ -174,7 +174,17 @@ impl Lane {
                 }
                 self.len = len as u32;
             }
-            (n.tri_start as usize, n.num_tris as usize)
+            let own = n.num_tris > 0
+                && n8.run_hit::<false>(
+                    n,
+                    &self.r,
+                    (self.tmin, self.tmax),
+                    &mut RayStats::default(),
+                );
+            (
+                n.tri_start as usize,
+                if own { n.num_tris as usize } else { 0 },
+            )
         };
         if run.1 > 0
             && l.any_hit::<AVX, _>(&self.r, run, self.tmin, self.tmax, &mut 0, &|_| false)
@@ -255,7 +265,7 @@ impl<'a> RayCaster<'a> {
     /// way; [`Boxes::Cluster`] measures the strategy's own boxes).
     pub fn with_boxes(scene: &'a Scene, tree: &'a ClusterTree, boxes: Boxes) -> Self {
         let mut layout = Layout::new(scene, tree, boxes);
-        let nodes = Nodes8::new(&layout);
+        let nodes = Nodes8::new(&layout, boxes != Boxes::Cluster);
         // The groups were the build's form of the nodes; the queries read `nodes`.
         layout.groups = Vec::new();
         layout.faces = Vec::new();
@@ -661,7 +671,7 @@ impl<'a> RayCaster<'a> {
                 if n.more != NONE {
                     stack.push(n.more);
                 }
-                if n.num_tris > 0 {
+                if n.num_tris > 0 && n8.run_hit::<STATS>(n, r, (tmin, tmax), stats) {
                     let run = (n.tri_start as usize, n.num_tris as usize);
                     let hit = l.any_hit::<AVX, _>(r, run, tmin, tmax, &mut stats.tris, skip);
                     if hit.is_some() {
@@ -764,9 +774,11 @@ impl<'a> RayCaster<'a> {
             if STATS {
                 stats.nodes += n.counts as u64;
                 stats.boxes += n.lanes as u64;
-                stats.tris += n.num_tris as u64;
             }
-            if n.num_tris > 0 {
+            if n.num_tris > 0 && n8.run_hit::<STATS>(n, r, (tmin, best_t), stats) {
+                if STATS {
+                    stats.tris += n.num_tris as u64;
+                }
                 let (ts, nt) = (n.tri_start as usize, n.num_tris as usize);
                 l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
             }

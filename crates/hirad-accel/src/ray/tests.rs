@@ -344,6 +344,26 @@ fn a_run_beside_four_children_gets_a_lane_of_its_own() {
 }
 
 #[test]
+fn a_run_without_a_lane_is_tested_only_when_its_box_is_hit() {
+    // A root holding two triangles and eight leaf children: the children fill its eight-lane
+    // node and the run, too short to split, has no lane. A ray onto a child away from the run
+    // misses the run's box and tests only the child's triangle (three without the box); a ray
+    // onto the run tests it.
+    let (s, t) = root_run_and_leaves(10, 2);
+    let rc = RayCaster::new(&s, &t);
+    let root = &rc.nodes.nodes[rc.nodes.root.unwrap() as usize];
+    assert_eq!((root.lanes, root.num_tris, root.more), (8, 2, NONE));
+    for i in 2..10 {
+        let st = down_onto(&rc, i);
+        assert_eq!(st.tris, 1, "{i}: {st:?}");
+    }
+    for i in 0..2 {
+        let st = down_onto(&rc, i);
+        assert!((1..=2).contains(&st.tris), "{i}: {st:?}");
+    }
+}
+
+#[test]
 fn a_long_run_is_split_into_pieces() {
     // The root of `a_sparse_run_is_visited_in_distance_order` (99 triangles in a row and a
     // leaf child): with tight boxes its run is split into pieces that fill the three free lanes

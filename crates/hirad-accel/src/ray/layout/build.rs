@@ -346,7 +346,8 @@ enum Lane {
 /// were split into pieces, the lanes of its top pieces. Nodes passed through and nodes whose
 /// run is split into pieces keep their children. The same triangles, each behind the box of
 /// its node's run or piece, but for a node whose children fill its eight-lane nodes: its own
-/// run is tested whenever it is visited ([`run_lane`]).
+/// run is tested at its visits, when the ray hits the run's box ([`run_lane`],
+/// `Node8::run_box`).
 fn collapse(
     order: &[u32],
     kids: &[Vec<u32>],

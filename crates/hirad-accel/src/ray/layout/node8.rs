@@ -4,6 +4,8 @@
 //! boxes, triangles and lanes) with the lanes in the order occlusion visits them; the queries
 //! traverse these nodes, the groups are the build's intermediate form.
 
+use super::super::watertight::{tri_of, RayPre};
+use super::super::RayStats;
 use super::encode::{leaf_run, CHUNK, FIRST, LEAF, NONE, RUN, SUB};
 use super::packets::WIDE_MIN;
 use super::Layout;
@@ -21,13 +23,16 @@ pub(in crate::ray) struct Node8 {
     pub child: [u32; 8],
     /// Face bits (`faces`), eight bits per lane.
     pub faces: u64,
-    /// The node's own triangle run `(first packet, count)`, tested whenever the node is
-    /// visited (when it has no box of its own in a lane).
+    /// The node's own triangle run `(first packet, count)` when it has no lane of its own,
+    /// tested when the node is visited (behind [`Node8::run_box`]).
     pub tri_start: u32,
     pub num_tris: u32,
     /// The node holding the lanes past this one's eighth ([`NONE`]: none), visited after
     /// this one's.
     pub more: u32,
+    /// Index in [`Nodes8::run_boxes`] of the box of the node's own run, which is tested only
+    /// when the ray hits that box; [`NONE`]: tested at every visit.
+    pub run_box: u32,
     /// Number of lanes with a box.
     pub lanes: u8,
     /// Whether a visit counts as a node of the tree ([`RayStats::nodes`](crate::ray::RayStats):
@@ -48,6 +53,7 @@ impl Node8 {
             tri_start: 0,
             num_tris: 0,
             more: NONE,
+            run_box: NONE,
             lanes: 0,
             counts: false,
         }
@@ -60,6 +66,9 @@ pub(in crate::ray) struct Nodes8 {
     pub nodes: Vec<Node8>,
     /// Runs of the [`RUN`] references: `(first packet, count)`.
     pub runs: Vec<(u32, u32)>,
+    /// Boxes of the nodes' own runs ([`Node8::run_box`]), `[min x, min y, min z, max x, max
+    /// y, max z]` of their triangles' vertices.
+    pub run_boxes: Vec<[f32; 6]>,
     /// Reference of the root; `None` for a tree without nodes.
     pub root: Option<u32>,
 }
@@ -80,8 +89,9 @@ pub(in crate::ray) fn is_leaf(r: u32) -> bool {
 
 impl Nodes8 {
     /// The nodes of layout `l`, in depth-first order (the lane visited first right after its
-    /// parent).
-    pub(in crate::ray) fn new(l: &Layout) -> Nodes8 {
+    /// parent); `run_boxes`: the nodes' own runs behind boxes of their own (else tested at
+    /// every visit, [`Boxes::Cluster`](super::Boxes::Cluster)).
+    pub(in crate::ray) fn new(l: &Layout, run_boxes: bool) -> Nodes8 {
         let Some(root) = l.root else {
             return Nodes8::default();
         };
@@ -103,6 +113,7 @@ impl Nodes8 {
         let mut out = Nodes8 {
             nodes: super::super::pages::with_capacity(count),
             runs: Vec::new(),
+            run_boxes: Vec::new(),
             root: None,
         };
         for (g0, lanes) in order {
@@ -132,6 +143,10 @@ impl Nodes8 {
                     node.counts = l.groups[g0].run & SUB == 0;
                     node.tri_start = ts as u32;
                     node.num_tris = nt as u32;
+                    if nt > 0 && run_boxes {
+                        node.run_box = out.run_boxes.len() as u32;
+                        out.run_boxes.push(run_box(l, (ts, nt)));
+                    }
                 }
                 out.nodes.push(node);
             }
@@ -171,10 +186,30 @@ impl Nodes8 {
         r & LEAF != 0 && r & CHUNK == 0
     }
 
+    /// Whether node `n`'s own run is to be tested: it has no box, or the ray hits its box
+    /// within `[tmin, tmax]` (a box test, counted in `stats`).
+    #[inline(always)]
+    pub(in crate::ray) fn run_hit<const STATS: bool>(
+        &self,
+        n: &Node8,
+        r: &RayPre,
+        (tmin, tmax): (f32, f32),
+        stats: &mut RayStats,
+    ) -> bool {
+        let Some(b) = self.run_boxes.get(n.run_box as usize) else {
+            return true;
+        };
+        if STATS {
+            stats.boxes += 1;
+        }
+        r.slab(b, tmin, tmax).is_some()
+    }
+
     /// Bytes used by the nodes.
     pub(in crate::ray) fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<Node8>()
             + self.runs.len() * std::mem::size_of::<(u32, u32)>()
+            + self.run_boxes.len() * std::mem::size_of::<[f32; 6]>()
     }
 
     /// Hint the cache to load what visiting `r` reads first.
@@ -267,6 +302,9 @@ impl Nodes8 {
                 continue;
             }
             run((n.tri_start as usize, n.num_tris as usize))?;
+            if n.num_tris > 0 && n.run_box != NONE && n.run_box as usize >= self.run_boxes.len() {
+                return Err(format!("node {r}: run box {} past the boxes", n.run_box));
+            }
             for lane in 0..8 {
                 let full = n.b[0][lane] <= n.b[3][lane];
                 if full != (lane < n.lanes as usize) {
@@ -285,6 +323,32 @@ impl Nodes8 {
             None => Ok(()),
         }
     }
+}
+
+/// The box of the triangles of the run `(first packet, count)` of layout `l`.
+fn run_box(l: &Layout, (s, n): (usize, usize)) -> [f32; 6] {
+    let mut b = [
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        -f32::INFINITY,
+        -f32::INFINITY,
+        -f32::INFINITY,
+    ];
+    for k in 0..n {
+        let v = if n >= WIDE_MIN {
+            tri_of(&l.wide[s + k / 16].v, k % 16)
+        } else {
+            tri_of(&l.packets[s + k / 4].v, k % 4)
+        };
+        for p in v.chunks_exact(3) {
+            for a in 0..3 {
+                b[a] = b[a].min(p[a]);
+                b[a + 3] = b[a + 3].max(p[a]);
+            }
+        }
+    }
+    b
 }
 
 /// The lanes of the layout node at group `g0`, lowest visit priority first (occlusion visits
