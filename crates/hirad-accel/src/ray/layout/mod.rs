@@ -104,10 +104,10 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 /// mostly empty space); the triangles of an inner node whose eight-lane node has a free lane
 /// get a box of their own in that lane, so that the node's one SIMD test decides them with its
 /// children (without a free lane, a box of their own is tested before them at each visit of
-/// the node, `Node8::run_box`); a node without triangles of its own and with a single child, whose box is its
-/// child's, is passed through (its parent's lane refers to the child). A run longer than
-/// `CHUNK_MAX` is split into pieces behind boxes of their own (`RunTree`) when the cost model
-/// says it pays ([`Boxes::Tight`] only). With [`Boxes::Cluster`] the boxes are the strategy's
+/// the node, `Node8::run_box`); a node without triangles of its own and with a single child,
+/// whose box is its child's, is passed through (its parent's lane refers to the child). A run
+/// longer than `CHUNK_MAX` is split into pieces behind boxes of their own (`RunTree`) when the
+/// cost model says it pays ([`Boxes::Tight`] only). With [`Boxes::Cluster`] the boxes are the strategy's
 /// boxes grown to contain their contents exactly (strategies may leave an f32 slack that
 /// `validate` tolerates; a ray grazing such a triangle must still reach it, so that the result
 /// equals brute force for any tree), and a node's triangles are tested whenever it is visited,
