@@ -265,7 +265,7 @@ impl<'a> RayCaster<'a> {
     /// way; [`Boxes::Cluster`] measures the strategy's own boxes).
     pub fn with_boxes(scene: &'a Scene, tree: &'a ClusterTree, boxes: Boxes) -> Self {
         let mut layout = Layout::new(scene, tree, boxes);
-        let nodes = Nodes8::new(&layout, boxes != Boxes::Cluster);
+        let nodes = Nodes8::new(&layout, scene, boxes != Boxes::Cluster);
         // The groups were the build's form of the nodes; the queries read `nodes`.
         layout.groups = Vec::new();
         layout.faces = Vec::new();

@@ -126,7 +126,8 @@ struct Excl {
     surface: u32,
 }
 
-fn box6(b: &Aabb) -> [f32; 6] {
+/// `b` as `[min x, min y, min z, max x, max y, max z]`, the form the box tests read.
+pub(in crate::ray) fn box6(b: &Aabb) -> [f32; 6] {
     [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z]
 }
 

@@ -107,8 +107,8 @@ choice!(Boxes, "traversal boxes", Tight => "tight", Nodes => "nodes", Cluster =>
 /// the node, `Node8::run_box`); a node without triangles of its own and with a single child,
 /// whose box is its child's, is passed through (its parent's lane refers to the child). A run
 /// longer than `CHUNK_MAX` is split into pieces behind boxes of their own (`RunTree`) when the
-/// cost model says it pays ([`Boxes::Tight`] only). With [`Boxes::Cluster`] the boxes are the strategy's
-/// boxes grown to contain their contents exactly (strategies may leave an f32 slack that
+/// cost model says it pays ([`Boxes::Tight`] only). With [`Boxes::Cluster`] the boxes are the
+/// strategy's boxes grown to contain their contents exactly (strategies may leave an f32 slack that
 /// `validate` tolerates; a ray grazing such a triangle must still reach it, so that the result
 /// equals brute force for any tree), and a node's triangles are tested whenever it is visited,
 /// as the paper's traversal does. Every lane carries six face bits (`faces`).

@@ -4,11 +4,14 @@
 //! boxes, triangles and lanes) with the lanes in the order occlusion visits them; the queries
 //! traverse these nodes, the groups are the build's intermediate form.
 
-use super::super::watertight::{tri_of, RayPre};
+use super::super::volume::box6;
+use super::super::watertight::RayPre;
 use super::super::RayStats;
 use super::encode::{leaf_run, CHUNK, FIRST, LEAF, NONE, RUN, SUB};
 use super::packets::WIDE_MIN;
+use super::run_tree::run_box;
 use super::Layout;
+use hirad_scene::Scene;
 
 /// Up to eight child boxes of one node (a node of more lanes continues in [`Node8::more`]).
 #[derive(Clone, Copy, Debug)]
@@ -88,10 +91,10 @@ pub(in crate::ray) fn is_leaf(r: u32) -> bool {
 }
 
 impl Nodes8 {
-    /// The nodes of layout `l`, in depth-first order (the lane visited first right after its
-    /// parent); `run_boxes`: the nodes' own runs behind boxes of their own (else tested at
-    /// every visit, [`Boxes::Cluster`](super::Boxes::Cluster)).
-    pub(in crate::ray) fn new(l: &Layout, run_boxes: bool) -> Nodes8 {
+    /// The nodes of layout `l` (laid out from `scene`), in depth-first order (the lane visited
+    /// first right after its parent); `run_boxes`: the nodes' own runs behind boxes of their
+    /// own (else tested at every visit, [`Boxes::Cluster`](super::Boxes::Cluster)).
+    pub(in crate::ray) fn new(l: &Layout, scene: &Scene, run_boxes: bool) -> Nodes8 {
         let Some(root) = l.root else {
             return Nodes8::default();
         };
@@ -145,7 +148,8 @@ impl Nodes8 {
                     node.num_tris = nt as u32;
                     if nt > 0 && run_boxes {
                         node.run_box = out.run_boxes.len() as u32;
-                        out.run_boxes.push(run_box(l, (ts, nt)));
+                        let ids: Vec<u32> = run_ids(l, (ts, nt)).collect();
+                        out.run_boxes.push(box6(&run_box(scene, &ids)));
                     }
                 }
                 out.nodes.push(node);
@@ -268,12 +272,7 @@ impl Nodes8 {
             if n > 0 && s + n.div_ceil(size) > len {
                 return Err(format!("run {s}+{n} past {len} packets"));
             }
-            for k in 0..n {
-                let id = if n >= WIDE_MIN {
-                    l.wide[s + k / 16].id[k % 16]
-                } else {
-                    l.packets[s + k / 4].id[k % 4]
-                };
+            for id in run_ids(l, (s, n)) {
                 match seen.get_mut(id as usize) {
                     Some(v) => *v = true,
                     None => return Err(format!("triangle {id} out of range")),
@@ -325,30 +324,15 @@ impl Nodes8 {
     }
 }
 
-/// The box of the triangles of the run `(first packet, count)` of layout `l`.
-fn run_box(l: &Layout, (s, n): (usize, usize)) -> [f32; 6] {
-    let mut b = [
-        f32::INFINITY,
-        f32::INFINITY,
-        f32::INFINITY,
-        -f32::INFINITY,
-        -f32::INFINITY,
-        -f32::INFINITY,
-    ];
-    for k in 0..n {
-        let v = if n >= WIDE_MIN {
-            tri_of(&l.wide[s + k / 16].v, k % 16)
+/// The scene ids of the triangles of the run `(first packet, count)` of layout `l`.
+fn run_ids(l: &Layout, (s, n): (usize, usize)) -> impl Iterator<Item = u32> + '_ {
+    (0..n).map(move |k| {
+        if n >= WIDE_MIN {
+            l.wide[s + k / 16].id[k % 16]
         } else {
-            tri_of(&l.packets[s + k / 4].v, k % 4)
-        };
-        for p in v.chunks_exact(3) {
-            for a in 0..3 {
-                b[a] = b[a].min(p[a]);
-                b[a + 3] = b[a + 3].max(p[a]);
-            }
+            l.packets[s + k / 4].id[k % 4]
         }
-    }
-    b
+    })
 }
 
 /// The lanes of the layout node at group `g0`, lowest visit priority first (occlusion visits
