@@ -361,3 +361,51 @@ fn solver_rays_are_exported_for_raybench() {
         "{err}"
     );
 }
+
+/// `raybench --embree` times Embree 3 beside the strategies, on the same segments: its
+/// default and robust builds count what `sah` counts up to segments that graze an edge. Where
+/// the library is missing (allowed unless HIRAD_REQUIRE_EMBREE is set) it exits 2 saying how
+/// to install it.
+#[test]
+fn raybench_times_embree_beside_the_strategies() {
+    let args = [
+        "-q",
+        "--json",
+        "raybench",
+        "cornell",
+        "--clustering",
+        "sah",
+        "--pairs",
+        "20000",
+        "--repeat",
+        "1",
+        "--closest",
+        "--embree",
+    ];
+    let o = hirad().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("Embree 3 not found") && std::env::var_os("HIRAD_REQUIRE_EMBREE").is_none() {
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("apt-get install libembree3-3"), "{err}");
+        return;
+    }
+    assert!(o.status.success(), "{err}");
+    let rb: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let sah = rb["rows"][0]["occluded"].as_u64().unwrap();
+    assert!(sah > 1000, "{sah}");
+    let rows = rb["embree"].as_array().unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["embree", "embree-robust"]);
+    for r in rows {
+        for key in ["occluded", "single_occluded"] {
+            let n = r[key].as_u64().unwrap();
+            assert!(
+                n.abs_diff(sah) * 200 <= sah,
+                "{key} {n} against sah's {sah}"
+            );
+        }
+        for key in ["sah_batch_ratio", "sah_single_ratio", "closest_mrays_per_s"] {
+            assert!(r[key].as_f64().unwrap() > 0.0, "{key}: {r}");
+        }
+    }
+}

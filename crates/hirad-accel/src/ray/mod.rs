@@ -11,8 +11,10 @@
 //! `experiments.md` §2 defines them; [`volume`] computes Sillion's volumetric transmittance
 //! through the same tree; [`watertight`] is the triangle test; `layout` stores the tree for
 //! traversal (its nodes and triangles on huge pages where the kernel gives them, `pages`);
-//! `stack` is the traversal stack.
+//! `stack` is the traversal stack; [`turns`] times casters in turns, and [`embree`] puts
+//! Embree 3 beside them for scale.
 
+pub mod embree;
 mod layout;
 mod pages;
 pub mod sample;

@@ -1,11 +1,42 @@
 //! Timing several ray casters on the same segments in turns ([`time_in_turns`]): this
 //! machine's speed drifts by tens of percent within minutes, so casters timed one after the
 //! other compare badly; taking turns every few milliseconds makes the drift weigh on each alike
-//! and keeps their ratios (`raybench`, the study's ray-casting units).
+//! and keeps their ratios (`raybench`, the study's ray-casting units). A caster is anything
+//! that answers the three query kinds over a slice of segments ([`TurnCaster`]): our
+//! [`RayCaster`], or Embree for scale ([`EmbreeCaster`](super::embree::EmbreeCaster)).
 
 use super::{RayCaster, Segment};
 use rayon::prelude::*;
 use std::time::Instant;
+
+/// A caster [`time_in_turns`] can time: its queries over a slice of segments, each returning
+/// a count (so that the work cannot be left out).
+pub trait TurnCaster: Sync {
+    /// Batch occlusion (several rays in flight per thread where the caster can): the number
+    /// of occluded segments.
+    fn count_occluded(&self, segs: &[Segment]) -> u64;
+    /// One occlusion query at a time, over the thread pool: the number of occluded segments.
+    fn count_occluded_single(&self, segs: &[Segment]) -> u64;
+    /// Closest-hit queries, over the thread pool: the number of segments that hit.
+    fn count_hits(&self, segs: &[Segment]) -> u64;
+}
+
+impl TurnCaster for RayCaster<'_> {
+    fn count_occluded(&self, segs: &[Segment]) -> u64 {
+        RayCaster::count_occluded(self, segs)
+    }
+
+    fn count_occluded_single(&self, segs: &[Segment]) -> u64 {
+        segs.par_iter()
+            .with_min_len(256)
+            .filter(|s| self.occluded(s.origin, s.dir, s.tmin, s.tmax))
+            .count() as u64
+    }
+
+    fn count_hits(&self, segs: &[Segment]) -> u64 {
+        self.closest_batch(segs).iter().flatten().count() as u64
+    }
+}
 
 /// Segments each caster casts in its turn.
 pub const TURN: usize = 16_384;
@@ -18,11 +49,11 @@ pub const WARM: usize = 1_024;
 /// of the last pass.
 #[derive(Clone, Debug, Default)]
 pub struct TurnTimes {
-    /// Batch occlusion ([`RayCaster::count_occluded`]).
+    /// Batch occlusion ([`TurnCaster::count_occluded`]).
     pub batch_s: Vec<f64>,
-    /// One query at a time ([`RayCaster::occluded`] per segment, over the thread pool).
+    /// One query at a time ([`TurnCaster::count_occluded_single`]).
     pub single_s: Vec<f64>,
-    /// Closest hits ([`RayCaster::closest_batch`]), when asked for.
+    /// Closest hits ([`TurnCaster::count_hits`]), when asked for.
     pub closest_s: Vec<f64>,
     /// Segments the batch found occluded.
     pub batch_occluded: Vec<u64>,
@@ -36,7 +67,7 @@ pub struct TurnTimes {
 /// order rotated at each turn, each turn after [`WARM`] of its segments cast untimed. `tick` is
 /// called after each round of turns.
 pub fn time_in_turns(
-    casters: &[&RayCaster],
+    casters: &[&dyn TurnCaster],
     segs: &[Segment],
     passes: usize,
     closest: bool,
@@ -62,15 +93,11 @@ pub fn time_in_turns(
                 t.batch_occluded[i] += rc.count_occluded(c);
                 t.batch_s[i] += t0.elapsed().as_secs_f64();
                 let t0 = Instant::now();
-                t.single_occluded[i] += c
-                    .par_iter()
-                    .with_min_len(256)
-                    .filter(|s| rc.occluded(s.origin, s.dir, s.tmin, s.tmax))
-                    .count() as u64;
+                t.single_occluded[i] += rc.count_occluded_single(c);
                 t.single_s[i] += t0.elapsed().as_secs_f64();
                 if closest {
                     let t0 = Instant::now();
-                    std::hint::black_box(rc.closest_batch(c));
+                    std::hint::black_box(rc.count_hits(c));
                     t.closest_s[i] += t0.elapsed().as_secs_f64();
                 }
             }

@@ -8,6 +8,8 @@
 use crate::Global;
 use hirad::cluster::{ClusterConfig, ClusterTree, Strategy};
 use hirad::progress::Progress;
+use hirad::ray::embree::EmbreeCaster;
+use hirad::ray::turns::TurnCaster;
 use hirad::ray::{sample, turns, Boxes, RayCaster, RayStats};
 use hirad::scene::SceneOptions;
 use serde::Serialize;
@@ -56,6 +58,13 @@ pub struct Args {
     /// scene's. `--pairs` and `--seed` are then ignored [default: none]
     #[arg(long, value_name = "FILE", conflicts_with = "export")]
     pub segments: Option<std::path::PathBuf>,
+    /// Also time Embree 3 on the same segments, in turns with the strategies, for scale: its
+    /// default build (`embree`) and its robust mode (`embree-robust`). Batch is
+    /// `rtcOccluded1M` (streams of 256 flagged incoherent), single `rtcOccluded1`, closest
+    /// `rtcIntersect1`. The library is loaded at run time (`libembree3.so.3`; Debian, Ubuntu:
+    /// `apt-get install libembree3-3`).
+    #[arg(long)]
+    pub embree: bool,
 }
 
 /// Result of one strategy.
@@ -77,6 +86,25 @@ struct Row {
     boxes_per_ray: f64,
     tris_per_ray: f64,
     closest: Option<ClosestRow>,
+}
+
+/// Result of Embree, timed in turns with the strategies.
+#[derive(Debug, Serialize)]
+struct EmbreeRow {
+    /// `embree` or `embree-robust`.
+    name: String,
+    build_ms: f64,
+    query_ms: f64,
+    mrays_per_s: f64,
+    single_mrays_per_s: f64,
+    /// Batch count (Embree's default test is not watertight: it may differ from ours by a
+    /// few segments that graze an edge or lie in a triangle's plane).
+    occluded: u64,
+    single_occluded: u64,
+    /// `sah`'s batch and single rates over these (when `sah` is in the list).
+    sah_batch_ratio: Option<f64>,
+    sah_single_ratio: Option<f64>,
+    closest_mrays_per_s: Option<f64>,
 }
 
 #[derive(Debug, Serialize)]
@@ -105,6 +133,8 @@ struct Report {
     brute_occluded: Option<u64>,
     counts_agree: bool,
     rows: Vec<Row>,
+    /// With `--embree`.
+    embree: Vec<EmbreeRow>,
 }
 
 pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
@@ -154,9 +184,24 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         casters.push((rc, t0.elapsed().as_secs_f64() * 1e3));
         bars.inc(1);
     }
+    let embree = if args.embree {
+        bars.message("building Embree");
+        vec![
+            EmbreeCaster::new(&scene, false)?,
+            EmbreeCaster::new(&scene, true)?,
+        ]
+    } else {
+        Vec::new()
+    };
     bars.message("casting");
-    let list: Vec<&RayCaster> = casters.iter().map(|(rc, _)| rc).collect();
+    let list: Vec<&dyn TurnCaster> = casters
+        .iter()
+        .map(|(rc, _)| rc as &dyn TurnCaster)
+        .chain(embree.iter().map(|e| e as &dyn TurnCaster))
+        .collect();
     let times = turns::time_in_turns(&list, &segs, repeat, args.closest, || bars.inc(1));
+    let ms = |s: f64| s * 1e3 / repeat as f64;
+    let rate = |s: f64| segs.len() as f64 / (ms(s) * 1e3);
     for (k, st) in strategies.iter().enumerate() {
         let (b, s) = (times.batch_occluded[k], times.single_occluded[k]);
         if b != s {
@@ -169,7 +214,6 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
     let mut brute_occluded = None;
     for (k, ((rc, layout_ms), (tree, build_ms))) in casters.iter().zip(&trees).enumerate() {
         let st = strategies[k];
-        let ms = |s: f64| s * 1e3 / repeat as f64;
         let (query_ms, single_ms) = (ms(times.batch_s[k]), ms(times.single_s[k]));
         let occluded = times.batch_occluded[k];
         let (occ2, stats): (u64, RayStats) = rc.occluded_batch_stats(&segs);
@@ -213,6 +257,27 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         });
     }
     bars.finish();
+    let sah = rows.iter().find(|r| r.strategy == "sah");
+    let embree: Vec<EmbreeRow> = embree
+        .iter()
+        .enumerate()
+        .map(|(j, e)| {
+            let k = strategies.len() + j;
+            let (batch, single) = (rate(times.batch_s[k]), rate(times.single_s[k]));
+            EmbreeRow {
+                name: if e.robust { "embree-robust" } else { "embree" }.into(),
+                build_ms: e.build_s * 1e3,
+                query_ms: ms(times.batch_s[k]),
+                mrays_per_s: batch,
+                single_mrays_per_s: single,
+                occluded: times.batch_occluded[k],
+                single_occluded: times.single_occluded[k],
+                sah_batch_ratio: sah.map(|r| r.mrays_per_s / batch),
+                sah_single_ratio: sah.map(|r| r.single_mrays_per_s / single),
+                closest_mrays_per_s: args.closest.then(|| rate(times.closest_s[k])),
+            }
+        })
+        .collect();
     if let Some(sah) = rows.iter().position(|r| r.strategy == "sah") {
         let base = rows[sah].mrays_per_s;
         let cbase = rows[sah].closest.as_ref().map(|c| c.mrays_per_s);
@@ -252,6 +317,7 @@ pub fn run(args: Args, g: &Global) -> anyhow::Result<()> {
         brute_occluded,
         counts_agree,
         rows,
+        embree,
     };
     if g.json {
         return super::print_json(&report);
@@ -282,7 +348,7 @@ fn print_table(r: &Report) {
         println!("brute-force occluded: {b}");
     }
     println!(
-        "{:<8} {:>9} {:>10} {:>9} {:>10} {:>8} {:>8} {:>9} {:>7} {:>8} {:>8} {:>8}",
+        "{:<13} {:>9} {:>10} {:>9} {:>10} {:>8} {:>8} {:>9} {:>7} {:>8} {:>8} {:>8}",
         "strategy",
         "clusters",
         "build ms",
@@ -298,7 +364,7 @@ fn print_table(r: &Report) {
     );
     for x in &r.rows {
         println!(
-            "{:<8} {:>9} {:>10.1} {:>9.1} {:>10.1} {:>8.3} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1} {:>8.1}",
+            "{:<13} {:>9} {:>10.1} {:>9.1} {:>10.1} {:>8.3} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1} {:>8.1}",
             x.strategy,
             x.clusters,
             x.build_ms,
@@ -312,6 +378,31 @@ fn print_table(r: &Report) {
             x.boxes_per_ray,
             x.tris_per_ray
         );
+    }
+    for e in &r.embree {
+        println!(
+            "{:<13} {:>9} {:>10.1} {:>9} {:>10.1} {:>8.3} {:>8.3} {:>9} {:>7}",
+            e.name,
+            "-",
+            e.build_ms,
+            "-",
+            e.query_ms,
+            e.mrays_per_s,
+            e.single_mrays_per_s,
+            e.occluded,
+            "-"
+        );
+    }
+    for e in &r.embree {
+        if let (Some(b), Some(s)) = (e.sah_batch_ratio, e.sah_single_ratio) {
+            let c = e
+                .closest_mrays_per_s
+                .zip(r.rows.iter().find(|x| x.strategy == "sah"))
+                .and_then(|(c, x)| Some(x.closest.as_ref()?.mrays_per_s / c))
+                .map(|c| format!(", closest {c:.2}"))
+                .unwrap_or_default();
+            println!("sah / {}: batch {b:.2}, single {s:.2}{c}", e.name);
+        }
     }
     if r.rows.iter().any(|x| x.closest.is_some()) {
         println!();

@@ -128,7 +128,10 @@ impl Study<'_> {
         let sah = sah_tree
             .as_ref()
             .map(|t| RayCaster::with_boxes(&self.scene, t, self.cfg.ray_boxes));
-        let list: Vec<&RayCaster> = std::iter::once(&caster).chain(sah.as_ref()).collect();
+        let list: Vec<&dyn turns::TurnCaster> = std::iter::once(&caster)
+            .chain(sah.as_ref())
+            .map(|c| c as &dyn turns::TurnCaster)
+            .collect();
         let times = turns::time_in_turns(&list, &segs, RAY_PASSES, false, || ());
         let occluded = times.batch_occluded[0];
         // As `raybench`: single queries and the batch must agree; a strategy that disagrees
