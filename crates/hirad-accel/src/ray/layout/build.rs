@@ -1,5 +1,6 @@
 //! [`Layout::new`]: lays a cluster tree out for traversal.
 
+use super::super::volume::box6;
 use super::encode::{
     leaf_ref, leaf_run, Group, CHUNK, FIRST, LEAF, LEAF_MAX_START, LEAF_MAX_TRIS, NONE, RUN, SUB,
 };
@@ -313,9 +314,8 @@ impl Layout {
                 Some(rt) => store_chunks(scene, &mut packets, &mut wide, ids, rt),
             }
         }
-        let b = &bound[0];
         Layout {
-            root_box: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
+            root_box: box6(&bound[0]),
             root: Some(link[0]),
             groups,
             faces,
