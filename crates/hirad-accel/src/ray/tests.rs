@@ -626,12 +626,14 @@ fn stack_spills_to_heap_in_order() {
 
 #[test]
 fn node_test_equals_scalar_slab() {
-    // The 8-wide box test of a node, compiled for the baseline and for AVX, gives the scalar
+    // The 8-wide box test of a node, compiled for the baseline and for AVX2, gives the scalar
     // slab test's answer and entry distance in every lane, including rays with zero direction
     // components (both signs) whose origin lies in a box plane (0·∞ = NaN), and never hits an
     // empty lane. The one exception: a lane is skipped when the ray lies in the plane of one
-    // of its box's faces whose face bit is set (what touches that plane lies in it: coplanar
-    // with the ray; `Slab8::flat_in_plane`).
+    // of its box's faces whose face bit is set
+    // (what touches that plane lies in it: coplanar with the ray; `Slab8::flat_in_plane`).
+    // Every other ray starts at t = 1/16 (a grid step of the boxes' planes along a unit
+    // direction component), where the running bounds are integers if every 1/d is finite.
     let mut g = hirad_core::rng::SplitMix64::new(4);
     let grid = |g: &mut hirad_core::rng::SplitMix64| (g.next_u64() % 9) as f32 * 0.5 - 2.0;
     let mut hits = 0;
@@ -657,12 +659,13 @@ fn node_test_equals_scalar_slab() {
         }
         node.faces = g.next_u64() & 0x3F3F_3F3F_3F3F_3F3F;
         let faces = node.faces;
-        let (mask, tn) = slab.test::<false>(&node, 0.0, 10.0);
+        let tmin = if i % 4 < 2 { 0.0 } else { 1.0 / 16.0 };
+        let (mask, tn) = slab.test::<false>(&node, tmin, 10.0);
         assert_eq!(mask >> full, 0, "empty lane hit");
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: AVX was detected above.
-            let (m8, t8) = unsafe { slab.test_avx(&node, 0.0, 10.0) };
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 was detected above.
+            let (m8, t8) = unsafe { slab.test_avx(&node, tmin, 10.0) };
             assert_eq!(m8, mask);
             for lane in 0..8 {
                 if mask >> lane & 1 == 1 {
@@ -671,7 +674,7 @@ fn node_test_equals_scalar_slab() {
             }
         }
         for (lane, b) in boxes.iter().enumerate() {
-            let s = r.slab(b, 0.0, 10.0);
+            let s = r.slab(b, tmin, 10.0);
             let f = (faces >> (8 * lane)) as u32;
             let flat_in_plane = (0..3).any(|a| {
                 d[a] == 0.0

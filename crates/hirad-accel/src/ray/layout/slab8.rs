@@ -1,5 +1,5 @@
 //! The slab test of a [`Node8`]'s eight boxes ([`Slab8`]): one AVX pass where the CPU has it,
-//! the same f32 operations lane by lane otherwise (hence the same mask).
+//! the same operations lane by lane otherwise (hence the same mask).
 
 use super::super::watertight::{RayPre, BOX_SLACK};
 use super::node8::Node8;
@@ -17,6 +17,30 @@ pub(in crate::ray) struct Slab8 {
     /// Bit `a` set when the direction's component `a` is zero (the ray lies in a plane of
     /// constant coordinate `a`).
     in_plane: u32,
+    /// Every `1/d` is finite: no plane distance is NaN ([`Slab8::test`]'s integer bounds).
+    finite: bool,
+}
+
+/// The larger of `a` and `b` as the integers of their bits: the float maximum when either is
+/// `≥ +0` (neither NaN); of two values with the sign bit set, the more negative.
+#[inline(always)]
+fn max_bits(a: f32, b: f32) -> f32 {
+    if a.to_bits() as i32 > b.to_bits() as i32 {
+        a
+    } else {
+        b
+    }
+}
+
+/// The smaller of `a` and `b` as the integers of their bits: the float minimum when both are
+/// `≥ +0` (neither NaN); otherwise a value with the sign bit set (`−0` before any other).
+#[inline(always)]
+fn min_bits(a: f32, b: f32) -> f32 {
+    if (a.to_bits() as i32) < b.to_bits() as i32 {
+        a
+    } else {
+        b
+    }
 }
 
 impl Slab8 {
@@ -32,7 +56,20 @@ impl Slab8 {
             in_plane: (r.d[0] == 0.0) as u32
                 | ((r.d[1] == 0.0) as u32) << 1
                 | ((r.d[2] == 0.0) as u32) << 2,
+            finite: r.inv.iter().all(|x| x.is_finite()),
         }
+    }
+
+    /// Whether the running bounds of a test from `tmin` may be taken as the integers of their
+    /// bits (a shorter chain of dependent operations, as in Embree): every `1/d` is finite, so
+    /// no plane distance is NaN, and `tmin > 0`. The entry bound starts at `tmin`, so it is
+    /// the float maximum; the exit bound is the float minimum when that is positive, and a
+    /// value with the sign bit set (`≤ −0`, below the entry bound) otherwise, so the mask and
+    /// the entry distances are the float test's. (From `tmin = 0` the exit bound `−0` of a
+    /// box behind the origin with a far plane through it would pass as `+0`.)
+    #[inline(always)]
+    fn int_bounds(&self, tmin: f32) -> bool {
+        self.finite && tmin > 0.0
     }
 
     /// Lanes of `n` that the ray only touches along a face: it lies in the plane of a face of
@@ -83,6 +120,7 @@ impl Slab8 {
         }
         let mut mask = 0;
         let mut out = [0f32; 8];
+        let int = self.int_bounds(tmin);
         for (lane, out) in out.iter_mut().enumerate() {
             let mut tn = tmin;
             let mut tf = tmax;
@@ -90,9 +128,14 @@ impl Slab8 {
                 // `near`/`far` are below 6 (`new`), the length of `n.b`.
                 let t0 = (n.b[self.near[a]][lane] - self.o[a]) * self.inv[a];
                 let t1 = (n.b[self.far[a]][lane] - self.o[a]) * self.inv[a];
-                // NaN compares false: it leaves the running bound unchanged.
-                tn = if t0 > tn { t0 } else { tn };
-                tf = if t1 < tf { t1 } else { tf };
+                if int {
+                    tn = max_bits(t0, tn);
+                    tf = min_bits(t1, tf);
+                } else {
+                    // NaN compares false: it leaves the running bound unchanged.
+                    tn = if t0 > tn { t0 } else { tn };
+                    tf = if t1 < tf { t1 } else { tf };
+                }
             }
             if tn <= tf * BOX_SLACK {
                 mask |= 1 << lane;
@@ -105,15 +148,16 @@ impl Slab8 {
         (mask, out)
     }
 
-    /// [`Slab8::test`] in one AVX pass: the same f32 operations per lane (max/min return the
-    /// second operand when either is NaN, as the scalar form keeps its running bound).
+    /// [`Slab8::test`] in one AVX pass: the same operations per lane (float max/min return
+    /// the second operand when either is NaN, as the scalar form keeps its running bound;
+    /// the integer bounds are AVX2's `max_epi32`/`min_epi32`).
     ///
-    /// Not itself compiled for AVX (a function with target features is not inlined into the
+    /// Not itself compiled for AVX2 (a function with target features is not inlined into the
     /// traversal loops, which are written once for both copies): it is inlined into the AVX2
-    /// copies of the traversals, where its intrinsics are then compiled for AVX too.
+    /// copies of the traversals, where its intrinsics are then compiled for AVX2 too.
     ///
     /// # Safety
-    /// The CPU must support AVX.
+    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub(in crate::ray) unsafe fn test_avx(
@@ -125,6 +169,7 @@ impl Slab8 {
         use core::arch::x86_64::*;
         let mut tn = _mm256_set1_ps(tmin);
         let mut tf = _mm256_set1_ps(tmax);
+        let int = self.int_bounds(tmin);
         for a in 0..3 {
             let o = _mm256_broadcast_ss(&self.o[a]);
             let inv = _mm256_broadcast_ss(&self.inv[a]);
@@ -133,8 +178,14 @@ impl Slab8 {
             let far = _mm256_load_ps(n.b.get_unchecked(self.far[a]).as_ptr());
             let t0 = _mm256_mul_ps(_mm256_sub_ps(near, o), inv);
             let t1 = _mm256_mul_ps(_mm256_sub_ps(far, o), inv);
-            tn = _mm256_max_ps(t0, tn);
-            tf = _mm256_min_ps(t1, tf);
+            if int {
+                let (t0, t1) = (_mm256_castps_si256(t0), _mm256_castps_si256(t1));
+                tn = _mm256_castsi256_ps(_mm256_max_epi32(t0, _mm256_castps_si256(tn)));
+                tf = _mm256_castsi256_ps(_mm256_min_epi32(t1, _mm256_castps_si256(tf)));
+            } else {
+                tn = _mm256_max_ps(t0, tn);
+                tf = _mm256_min_ps(t1, tf);
+            }
         }
         let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(tn, _mm256_mul_ps(tf, _mm256_set1_ps(BOX_SLACK)));
         let mut mask = _mm256_movemask_ps(hit) as u32;
