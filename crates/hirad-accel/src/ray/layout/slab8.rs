@@ -10,8 +10,10 @@ use super::node8::Node8;
 /// comparisons then ignore, as the scalar [`RayPre::slab`] does).
 #[derive(Clone, Copy, Debug, Default)]
 pub(in crate::ray) struct Slab8 {
-    o: [f32; 3],
-    inv: [f32; 3],
+    /// Origin, each coordinate in eight lanes.
+    o: Splat8,
+    /// Reciprocal direction, each component in eight lanes.
+    inv: Splat8,
     near: [usize; 3],
     far: [usize; 3],
     /// Bit `a` set when the direction's component `a` is zero (the ray lies in a plane of
@@ -19,6 +21,24 @@ pub(in crate::ray) struct Slab8 {
     in_plane: u32,
     /// Every `1/d` is finite: no plane distance is NaN ([`Slab8::test`]'s integer bounds).
     finite: bool,
+}
+
+/// Three values, each repeated in the eight lanes of a 32-byte row: the AVX test loads a row as
+/// it is (re-broadcasting the ray's values at every visit cost 3–7%, perf-log 58).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+struct Splat8([[f32; 8]; 3]);
+
+impl Splat8 {
+    #[inline(always)]
+    fn new(v: [f32; 3]) -> Splat8 {
+        Splat8(v.map(|x| [x; 8]))
+    }
+
+    #[inline(always)]
+    fn get(&self, a: usize) -> f32 {
+        self.0[a][0]
+    }
 }
 
 /// The larger of `a` and `b` as the integers of their bits: the float maximum when either is
@@ -47,8 +67,8 @@ impl Slab8 {
     #[inline(always)]
     pub(in crate::ray) fn new(r: &RayPre) -> Slab8 {
         Slab8 {
-            o: r.o,
-            inv: r.inv,
+            o: Splat8::new(r.o),
+            inv: Splat8::new(r.inv),
             // Plane indices are in 0..6 (RayPre's contract); keep that invariant for the
             // unchecked loads of `test`.
             near: r.near.map(|i| i.min(5)),
@@ -88,7 +108,7 @@ impl Slab8 {
         let mut m = 0;
         for a in 0..3 {
             if self.in_plane & (1 << a) != 0 {
-                let o = self.o[a];
+                let o = self.o.get(a);
                 for lane in 0..8 {
                     let f = n.faces >> (8 * lane);
                     if (n.b[a][lane] == o && f & (1 << a) != 0)
@@ -126,8 +146,9 @@ impl Slab8 {
             let mut tf = tmax;
             for a in 0..3 {
                 // `near`/`far` are below 6 (`new`), the length of `n.b`.
-                let t0 = (n.b[self.near[a]][lane] - self.o[a]) * self.inv[a];
-                let t1 = (n.b[self.far[a]][lane] - self.o[a]) * self.inv[a];
+                let (o, inv) = (self.o.get(a), self.inv.get(a));
+                let t0 = (n.b[self.near[a]][lane] - o) * inv;
+                let t1 = (n.b[self.far[a]][lane] - o) * inv;
                 if int {
                     tn = max_bits(t0, tn);
                     tf = min_bits(t1, tf);
@@ -171,8 +192,8 @@ impl Slab8 {
         let mut tf = _mm256_set1_ps(tmax);
         let int = self.int_bounds(tmin);
         for a in 0..3 {
-            let o = _mm256_broadcast_ss(&self.o[a]);
-            let inv = _mm256_broadcast_ss(&self.inv[a]);
+            let o = _mm256_load_ps(self.o.0[a].as_ptr());
+            let inv = _mm256_load_ps(self.inv.0[a].as_ptr());
             // Rows of 32 bytes in a 64-byte aligned node; `near`/`far` below 6 (`new`).
             let near = _mm256_load_ps(n.b.get_unchecked(self.near[a]).as_ptr());
             let far = _mm256_load_ps(n.b.get_unchecked(self.far[a]).as_ptr());
