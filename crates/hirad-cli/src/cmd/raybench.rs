@@ -390,7 +390,7 @@ fn print_table(r: &Report) {
             e.mrays_per_s,
             e.single_mrays_per_s,
             e.occluded,
-            "-"
+            opt(e.sah_batch_ratio.map(|x| 1.0 / x), 2)
         );
     }
     for e in &r.embree {
@@ -407,13 +407,13 @@ fn print_table(r: &Report) {
     if r.rows.iter().any(|x| x.closest.is_some()) {
         println!();
         println!(
-            "{:<8} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8}",
+            "{:<13} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8}",
             "closest", "query ms", "Mrays/s", "hits", "vs sah", "nodes/ray", "tris/ray"
         );
         for x in &r.rows {
             if let Some(c) = &x.closest {
                 println!(
-                    "{:<8} {:>10.1} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1}",
+                    "{:<13} {:>10.1} {:>8.3} {:>9} {:>7} {:>8.1} {:>8.1}",
                     x.strategy,
                     c.query_ms,
                     c.mrays_per_s,
@@ -421,6 +421,20 @@ fn print_table(r: &Report) {
                     opt(c.rel_sah, 2),
                     c.nodes_per_ray,
                     c.tris_per_ray
+                );
+            }
+        }
+        let sah = r.rows.iter().find(|x| x.strategy == "sah");
+        let sah = sah.and_then(|x| Some(x.closest.as_ref()?.mrays_per_s));
+        for e in &r.embree {
+            if let Some(c) = e.closest_mrays_per_s {
+                println!(
+                    "{:<13} {:>10} {:>8.3} {:>9} {:>7}",
+                    e.name,
+                    "-",
+                    c,
+                    "-",
+                    opt(sah.map(|s| c / s), 2)
                 );
             }
         }
