@@ -24,7 +24,8 @@ pub(in crate::ray) struct Slab8 {
 }
 
 /// Three values, each repeated in the eight lanes of a 32-byte row: the AVX test loads a row as
-/// it is (re-broadcasting the ray's values at every visit cost 3–7%, perf-log 58).
+/// it is (broadcasting the ray's values again at every visit cost 2–6% of a query,
+/// `docs/perf-log.md` (58)).
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(32))]
 struct Splat8([[f32; 8]; 3]);
