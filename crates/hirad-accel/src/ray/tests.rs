@@ -630,8 +630,8 @@ fn node_test_equals_scalar_slab() {
     // slab test's answer and entry distance in every lane, including rays with zero direction
     // components (both signs) whose origin lies in a box plane (0·∞ = NaN), and never hits an
     // empty lane. The one exception: a lane is skipped when the ray lies in the plane of one
-    // of its box's faces whose face bit is set
-    // (what touches that plane lies in it: coplanar with the ray; `Slab8::flat_in_plane`).
+    // of its box's faces whose face bit is set (what touches that plane lies in it: coplanar
+    // with the ray; `Slab8::flat_in_plane`).
     // Every other ray starts at t = 1/16 (a grid step of the boxes' planes along a unit
     // direction component), where the running bounds are integers if every 1/d is finite.
     let mut g = hirad_core::rng::SplitMix64::new(4);

@@ -393,13 +393,18 @@ fn print_table(r: &Report) {
             opt(e.sah_batch_ratio.map(|x| 1.0 / x), 2)
         );
     }
+    // `sah`'s closest-hit rate, the baseline of Embree's closest-hit ratios.
+    let sah_closest = r
+        .rows
+        .iter()
+        .find(|x| x.strategy == "sah")
+        .and_then(|x| Some(x.closest.as_ref()?.mrays_per_s));
     for e in &r.embree {
         if let (Some(b), Some(s)) = (e.sah_batch_ratio, e.sah_single_ratio) {
             let c = e
                 .closest_mrays_per_s
-                .zip(r.rows.iter().find(|x| x.strategy == "sah"))
-                .and_then(|(c, x)| Some(x.closest.as_ref()?.mrays_per_s / c))
-                .map(|c| format!(", closest {c:.2}"))
+                .zip(sah_closest)
+                .map(|(c, sc)| format!(", closest {:.2}", sc / c))
                 .unwrap_or_default();
             println!("sah / {}: batch {b:.2}, single {s:.2}{c}", e.name);
         }
@@ -424,8 +429,6 @@ fn print_table(r: &Report) {
                 );
             }
         }
-        let sah = r.rows.iter().find(|x| x.strategy == "sah");
-        let sah = sah.and_then(|x| Some(x.closest.as_ref()?.mrays_per_s));
         for e in &r.embree {
             if let Some(c) = e.closest_mrays_per_s {
                 println!(
@@ -434,7 +437,7 @@ fn print_table(r: &Report) {
                     "-",
                     c,
                     "-",
-                    opt(sah.map(|s| c / s), 2)
+                    opt(sah_closest.map(|s| c / s), 2)
                 );
             }
         }
