@@ -682,8 +682,10 @@ impl<'a> RayCaster<'a> {
                 }
                 if mask != 0 {
                     let hi = 31 - mask.leading_zeros() as usize;
-                    stack.push8(&n.child, mask & !(1 << hi));
+                    // Read before the push: the next node's load then waits only for `hi`
+                    // (docs/perf-log.md 2026-12-07 (59)).
                     cur = n.child[hi];
+                    stack.push8(&n.child, mask & !(1 << hi));
                     continue;
                 }
                 (0, 0)
