@@ -744,8 +744,10 @@ impl<'a> RayCaster<'a> {
     }
 
     /// The traversal of a closest-hit query from the root (its reference and entry distance):
-    /// every hit lane is pushed, nearest on top, and entries farther than the current hit are
-    /// skipped. `AVX`: as in [`RayCaster::occluded_loop`].
+    /// the nearest hit lane of a node is visited next, the others are pushed, nearest on top
+    /// (ties: the later lane first), and popped entries farther than the current hit are
+    /// skipped. A single hit lane is visited without the stack, and of two only the farther
+    /// is pushed, as in Embree's traversal. `AVX`: as in [`RayCaster::occluded_loop`].
     #[inline(always)]
     fn closest_loop<const STATS: bool, const AVX: bool>(
         &self,
@@ -760,54 +762,99 @@ impl<'a> RayCaster<'a> {
         let mut best_t = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
         let mut stack: Stack<Entry, STACK> = Stack::new();
-        stack.push(Entry { node: root, t: t0 });
-        while let Some(e) = stack.pop() {
-            if e.t > best_t * watertight::BOX_SLACK {
-                continue;
-            }
-            if is_leaf(e.node) {
-                let (ts, nt) = n8.leaf(e.node);
-                if STATS {
-                    stats.nodes += Nodes8::leaf_counts(e.node) as u64;
-                    stats.tris += nt as u64;
+        let mut cur = Entry { node: root, t: t0 };
+        'visit: loop {
+            // Down from `cur` to a leaf or a node without a hit lane.
+            loop {
+                if is_leaf(cur.node) {
+                    let (ts, nt) = n8.leaf(cur.node);
+                    if STATS {
+                        stats.nodes += Nodes8::leaf_counts(cur.node) as u64;
+                        stats.tris += nt as u64;
+                    }
+                    l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
+                    break;
                 }
-                l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
-                continue;
-            }
-            let n = &n8.nodes[e.node as usize];
-            if STATS {
-                stats.nodes += n.counts as u64;
-                stats.boxes += n.lanes as u64;
-            }
-            if n.num_tris > 0 && n8.run_hit::<STATS>(n, r, (tmin, best_t), stats) {
+                let n = &n8.nodes[cur.node as usize];
                 if STATS {
-                    stats.tris += n.num_tris as u64;
+                    stats.nodes += n.counts as u64;
+                    stats.boxes += n.lanes as u64;
                 }
-                let (ts, nt) = (n.tri_start as usize, n.num_tris as usize);
-                l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
-            }
-            if n.more != NONE {
-                stack.push(Entry {
-                    node: n.more,
-                    t: e.t,
-                });
-            }
-            let (mut mask, tn) = slab.test::<AVX>(n, tmin, best_t);
-            let before = stack.size();
-            while mask != 0 {
-                let i = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                n8.prefetch(l, n.child[i]);
-                stack.push(Entry {
+                if n.num_tris > 0 && n8.run_hit::<STATS>(n, r, (tmin, best_t), stats) {
+                    if STATS {
+                        stats.tris += n.num_tris as u64;
+                    }
+                    let (ts, nt) = (n.tri_start as usize, n.num_tris as usize);
+                    l.closest_hit::<AVX>(r, ts, nt, tmin, &mut best_t, &mut best);
+                }
+                if n.more != NONE {
+                    stack.push(Entry {
+                        node: n.more,
+                        t: cur.t,
+                    });
+                }
+                // Lanes hit within `[tmin, best_t]`: their entry is at most `best_t` (with the
+                // slack), so the pop's test below would keep them.
+                let (mut mask, tn) = slab.test::<AVX>(n, tmin, best_t);
+                let lane = |i: usize| Entry {
                     node: n.child[i],
                     t: tn[i],
-                });
+                };
+                if mask == 0 {
+                    break;
+                }
+                let a = lane(mask.trailing_zeros() as usize);
+                mask &= mask - 1;
+                if mask == 0 {
+                    cur = a;
+                    continue;
+                }
+                let b = lane(mask.trailing_zeros() as usize);
+                mask &= mask - 1;
+                if mask == 0 {
+                    let (near, far) = if b.t.total_cmp(&a.t).is_le() {
+                        (b, a)
+                    } else {
+                        (a, b)
+                    };
+                    n8.prefetch(l, far.node);
+                    stack.push(far);
+                    cur = near;
+                    continue;
+                }
+                let before = stack.size();
+                for e in [a, b] {
+                    n8.prefetch(l, e.node);
+                    stack.push(e);
+                }
+                while mask != 0 {
+                    let e = lane(mask.trailing_zeros() as usize);
+                    mask &= mask - 1;
+                    n8.prefetch(l, e.node);
+                    stack.push(e);
+                }
+                // Nearest on top: an insertion sort by decreasing entry distance, stable (ties
+                // keep the lane order, the later lane on top).
+                let top = stack.top_mut(stack.size() - before);
+                for i in 1..top.len() {
+                    let x = top[i];
+                    let mut j = i;
+                    while j > 0 && top[j - 1].t.total_cmp(&x.t).is_lt() {
+                        top[j] = top[j - 1];
+                        j -= 1;
+                    }
+                    top[j] = x;
+                }
+                cur = stack.pop().expect("three or more entries were pushed");
             }
-            let k = stack.size() - before;
-            if k > 1 {
-                // Nearest on top: decreasing entry distance; ties keep the lane order.
-                stack.top_mut(k).sort_by(|a, b| b.t.total_cmp(&a.t));
+            while let Some(e) = stack.pop() {
+                if e.t > best_t * watertight::BOX_SLACK {
+                    continue;
+                }
+                cur = e;
+                continue 'visit;
             }
+            break;
         }
         best.map(|(tri, u, v)| Hit {
             t: best_t,
