@@ -27,7 +27,7 @@ use crate::cluster::ClusterTree;
 use glam::Vec3;
 use hirad_scene::Scene;
 pub use layout::Boxes;
-use layout::{is_leaf, Layout, Nodes8, Slab8, NONE};
+use layout::{is_leaf, Layout, Node8, Nodes8, Slab8, NONE};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 pub(crate) use stack::Stack;
@@ -238,7 +238,8 @@ struct Entry {
 /// been ordered by their chance of blocking a ray per cost (`occlusion_order` in
 /// `ray/layout/build.rs`; a node's run tested as soon as its box is hit, and pieces of a run
 /// marked to be visited first, come first); the highest hit lane is visited next without going
-/// through the stack. Closest-hit queries push every hit child, nearest on top, and skip
+/// through the stack, and a node is tested together with the stack's next entry when that is
+/// a node too. Closest-hit queries push every hit child, nearest on top, and skip
 /// entries farther than the current hit. Batch occlusion ([`RayCaster::occluded_stream`],
 /// used by [`RayCaster::count_occluded`] and [`RayCaster::occluded_batch`]) keeps [`STREAM`]
 /// rays in flight per thread and visits one node of each in turn, in the single-ray order, so
@@ -641,7 +642,8 @@ impl<'a> RayCaster<'a> {
 
     /// The traversal of an occlusion query from `root`, whose box the ray hits: the highest
     /// hit lane of a node is visited next, the others are pushed without a branch per lane
-    /// (`Stack::push8`). `AVX`: the box test in one AVX pass and packets of four triangles
+    /// (`Stack::push8`); a node and the stack's next entry, when that is a node, are tested in
+    /// one pass. `AVX`: the box test in one AVX pass and packets of four triangles
     /// decided at once (only in [`RayCaster::occluded_avx2`]).
     #[inline(always)]
     fn occluded_loop<const STATS: bool, const AVX: bool, F: Fn(u32) -> bool>(
@@ -665,20 +667,44 @@ impl<'a> RayCaster<'a> {
                 n8.leaf(cur)
             } else {
                 let n = &n8.nodes[cur as usize];
-                if STATS {
-                    stats.nodes += n.counts as u64;
-                    stats.boxes += n.lanes as u64;
+                // The stack's next entry, when it is a node, is tested in the same pass: its
+                // test does not wait for this one's, so the two overlap (docs/perf-log.md
+                // 2026-12-08 (60)). Its lanes go below this node's, where it was: nodes are
+                // visited in the same order, but its box and its own run are tested early
+                // (for nothing when the ray is blocked in this node's subtree).
+                if let Some(b) = stack.pop_if(|&r| !is_leaf(r)) {
+                    let m = &n8.nodes[b as usize];
+                    let (ma, _) = slab.test::<AVX>(n, tmin, tmax);
+                    let (mb, _) = slab.test::<AVX>(m, tmin, tmax);
+                    if m.more != NONE {
+                        stack.push(m.more);
+                    }
+                    stack.push8(&m.child, mb);
+                    if n.more != NONE {
+                        stack.push(n.more);
+                    }
+                    for x in [n, m] {
+                        if let Some(hit) =
+                            self.node_run::<STATS, AVX, F>(x, r, tmin, tmax, stats, skip)
+                        {
+                            return Some(hit);
+                        }
+                    }
+                    if ma != 0 {
+                        let hi = 31 - ma.leading_zeros() as usize;
+                        cur = n.child[hi];
+                        stack.push8(&n.child, ma & !(1 << hi));
+                        continue;
+                    }
+                    cur = stack.pop()?;
+                    continue;
                 }
                 let (mask, _) = slab.test::<AVX>(n, tmin, tmax);
                 if n.more != NONE {
                     stack.push(n.more);
                 }
-                if n.num_tris > 0 && n8.run_hit::<STATS>(n, r, (tmin, tmax), stats) {
-                    let run = (n.tri_start as usize, n.num_tris as usize);
-                    let hit = l.any_hit::<AVX, _>(r, run, tmin, tmax, &mut stats.tris, skip);
-                    if hit.is_some() {
-                        return hit;
-                    }
+                if let Some(hit) = self.node_run::<STATS, AVX, F>(n, r, tmin, tmax, stats, skip) {
+                    return Some(hit);
                 }
                 if mask != 0 {
                     let hi = 31 - mask.leading_zeros() as usize;
@@ -698,6 +724,31 @@ impl<'a> RayCaster<'a> {
             }
             cur = stack.pop()?;
         }
+    }
+
+    /// A visit of inner node `n` in an occlusion query: counted in `stats`, and its own run
+    /// tested when the ray hits the run's box; the run's blocking triangle, if any.
+    #[inline(always)]
+    fn node_run<const STATS: bool, const AVX: bool, F: Fn(u32) -> bool>(
+        &self,
+        n: &Node8,
+        r: &RayPre,
+        tmin: f32,
+        tmax: f32,
+        stats: &mut RayStats,
+        skip: &F,
+    ) -> Option<u32> {
+        if STATS {
+            stats.nodes += n.counts as u64;
+            stats.boxes += n.lanes as u64;
+        }
+        if n.num_tris > 0 && self.nodes.run_hit::<STATS>(n, r, (tmin, tmax), stats) {
+            let run = (n.tri_start as usize, n.num_tris as usize);
+            return self
+                .layout
+                .any_hit::<AVX, _>(r, run, tmin, tmax, &mut stats.tris, skip);
+        }
+        None
     }
 
     #[inline(always)]

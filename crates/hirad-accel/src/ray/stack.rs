@@ -56,6 +56,22 @@ impl<T: Copy, const N: usize> Stack<T, N> {
         Some(unsafe { self.buf[self.len].assume_init() })
     }
 
+    /// Pop the top entry if there is one and `keep` accepts it.
+    #[inline(always)]
+    pub(crate) fn pop_if(&mut self, keep: impl Fn(&T) -> bool) -> Option<T> {
+        let top = if self.spilled {
+            self.heap.last().copied()
+        } else if self.len > 0 {
+            // SAFETY: entries below `len` were written by `push`.
+            Some(unsafe { self.buf[self.len - 1].assume_init() })
+        } else {
+            None
+        };
+        let top = top.filter(keep)?;
+        self.pop();
+        Some(top)
+    }
+
     #[inline(always)]
     pub(crate) fn size(&self) -> usize {
         if self.spilled {

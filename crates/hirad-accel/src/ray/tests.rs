@@ -625,6 +625,27 @@ fn stack_spills_to_heap_in_order() {
 }
 
 #[test]
+fn pop_if_takes_the_top_only_when_asked() {
+    // On the fixed array and after a spill: the top is popped only if `keep` accepts it.
+    for n in [3, 10] {
+        let mut s: Stack<u32, 4> = Stack::new();
+        for i in 0..n {
+            s.push(i);
+        }
+        assert_eq!(
+            s.pop_if(|&x| x % 2 == 0),
+            ((n - 1) % 2 == 0).then_some(n - 1)
+        );
+        let left = if (n - 1) % 2 == 0 { n - 1 } else { n };
+        assert_eq!(s.size(), left as usize);
+        assert_eq!(s.pop_if(|_| true), Some(left - 1));
+        assert_eq!(s.size(), left as usize - 1);
+    }
+    let mut e: Stack<u32, 4> = Stack::new();
+    assert_eq!(e.pop_if(|_| true), None);
+}
+
+#[test]
 fn node_test_equals_scalar_slab() {
     // The 8-wide box test of a node, compiled for the baseline and for AVX2, gives the scalar
     // slab test's answer and entry distance in every lane, including rays with zero direction

@@ -25,9 +25,7 @@ pub(in crate::ray) use encode::NONE;
 #[cfg(test)]
 pub(in crate::ray) use encode::SUB;
 pub(in crate::ray) use encode::{leaf_run, LEAF, RUN};
-#[cfg(test)]
-pub(in crate::ray) use node8::Node8;
-pub(in crate::ray) use node8::{is_leaf, Nodes8};
+pub(in crate::ray) use node8::{is_leaf, Node8, Nodes8};
 #[cfg(test)]
 pub(in crate::ray) use packets::has_avx512;
 #[cfg(test)]
