@@ -255,6 +255,21 @@ pub struct RayCaster<'a> {
     nodes: Nodes8,
 }
 
+/// The next node of an occlusion query below `n`, whose lanes `mask` are hit: the highest hit
+/// lane, the others pushed; `None` when no lane is hit. The reference is read before the
+/// push, so that the next node's load waits only for the lane (docs/perf-log.md 2026-12-07
+/// (59)).
+#[inline(always)]
+fn descend(n: &Node8, mask: u32, stack: &mut Stack<u32, STACK>) -> Option<u32> {
+    if mask == 0 {
+        return None;
+    }
+    let hi = 31 - mask.leading_zeros() as usize;
+    let next = n.child[hi];
+    stack.push8(&n.child, mask & !(1 << hi));
+    Some(next)
+}
+
 /// Stack size kept on the machine stack.
 const STACK: usize = 128;
 
@@ -690,13 +705,10 @@ impl<'a> RayCaster<'a> {
                             return Some(hit);
                         }
                     }
-                    if ma != 0 {
-                        let hi = 31 - ma.leading_zeros() as usize;
-                        cur = n.child[hi];
-                        stack.push8(&n.child, ma & !(1 << hi));
-                        continue;
-                    }
-                    cur = stack.pop()?;
+                    cur = match descend(n, ma, &mut stack) {
+                        Some(c) => c,
+                        None => stack.pop()?,
+                    };
                     continue;
                 }
                 let (mask, _) = slab.test::<AVX>(n, tmin, tmax);
@@ -706,12 +718,8 @@ impl<'a> RayCaster<'a> {
                 if let Some(hit) = self.node_run::<STATS, AVX, F>(n, r, tmin, tmax, stats, skip) {
                     return Some(hit);
                 }
-                if mask != 0 {
-                    let hi = 31 - mask.leading_zeros() as usize;
-                    // Read before the push: the next node's load then waits only for `hi`
-                    // (docs/perf-log.md 2026-12-07 (59)).
-                    cur = n.child[hi];
-                    stack.push8(&n.child, mask & !(1 << hi));
+                if let Some(c) = descend(n, mask, &mut stack) {
+                    cur = c;
                     continue;
                 }
                 (0, 0)
